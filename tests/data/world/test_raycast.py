@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from data.errors import InputError
-from data.world.dem import generate_archipelago
+from data.world.dem import Dem, generate_archipelago
 from data.world.raycast import VirtualHorizon, curvature_drop, effective_radius, virtual_horizon
 
 
