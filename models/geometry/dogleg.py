@@ -1,0 +1,210 @@
+"""Optimal N-view triangulation by Powell's dogleg (thesis 2.5, paper A).
+
+Minimises the sum of squared reprojection errors (thesis eq. 2.2) of every point independently, all points
+at once: one lane per point, a fixed maximum number of iterations, and every branch of the trust-region method
+(Gauss-Newton step, Cauchy point, dogleg interpolation, gain-ratio test, radius update; Madsen, Nielsen and
+Tingleff, Alg. 3.21) written as ``torch.where`` masks. The 3x3 Gauss-Newton systems are solved in closed form,
+so the solver runs on any device and dtype, compiles with ``torch.compile`` and exports to ONNX.
+
+The problem is re-parametrised around the start ``X0``: with ``A_i = P_i[:2] - x_i P_i[2]`` the residual of view
+``i`` is ``r_i = (A_i[:, :3] d + A_i X0~) / (P_i[2, :3] d + P_i[2] X0~)`` for ``X = X0 + d``. The constant terms
+are computed once and are small near the optimum, which keeps fp32 accurate.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+from torch import Tensor, nn
+
+from models.geometry.midpoint import midpoint_from_views, parallax_threshold
+from models.geometry.projection import check_cameras_and_points, finite_inputs
+from models.geometry.small_linalg import SYM3_INDEX, solve_sym3, sym3_quadratic_form
+from models.geometry.views import View, dot3, split_views
+
+Vec3 = tuple[Tensor, Tensor, Tensor]
+
+
+class DoglegTriangulation(NamedTuple):
+    """Result of :func:`triangulate_dogleg`.
+
+    Attributes:
+        points: (B, 3) optimised points.
+        cost: (B,) sum of squared reprojection errors in px^2.
+        valid: (B,) finite input, in front of every camera, rays not near-parallel.
+        converged: (B,) the step or trust radius fell below the tolerance within the iteration budget.
+    """
+
+    points: Tensor
+    cost: Tensor
+    valid: Tensor
+    converged: Tensor
+
+
+class _CentredView(NamedTuple):
+    rows: tuple[Vec3, Vec3]  # A_i[k, :3] for k = 0, 1
+    offsets: tuple[Tensor, Tensor]  # A_i[k] X0~
+    q: Vec3  # P_i[2, :3]
+    w0: Tensor  # P_i[2] X0~
+
+
+def _centre(view: View, X0: Vec3) -> _CentredView:
+    P0, P1, P2 = view.P
+    rows = []
+    offsets = []
+    for Pk, xk in ((P0, view.x), (P1, view.y)):
+        row = tuple(Pk[c] - xk * P2[c] for c in range(4))
+        rows.append(row[:3])
+        offsets.append(dot3(row, X0) + row[3])
+    return _CentredView(tuple(rows), tuple(offsets), P2[:3], dot3(P2, X0) + P2[3])  # type: ignore[arg-type]
+
+
+def _linearise(views: list[_CentredView], d: Vec3) -> tuple[Tensor, Tensor, list[Tensor], list[Tensor]]:
+    """Half cost, smallest depth, gradient ``J^T r`` (3) and Hessian ``J^T J`` (6 entries) at ``X0 + d``."""
+    F: Tensor | float = 0.0
+    g: list = [0.0] * 3
+    H: list = [0.0] * 6
+    depths = []
+    for view in views:
+        w = dot3(view.q, d) + view.w0
+        inv_w = 1.0 / w
+        depths.append(w)
+        for row, offset in zip(view.rows, view.offsets, strict=True):
+            r = (dot3(row, d) + offset) * inv_w
+            J = tuple((row[c] - r * view.q[c]) * inv_w for c in range(3))
+            F = F + r * r
+            for c in range(3):
+                g[c] = g[c] + J[c] * r
+            for k, (a, b) in enumerate(SYM3_INDEX):
+                H[k] = H[k] + J[a] * J[b]
+    min_depth = depths[0]
+    for w in depths[1:]:
+        min_depth = torch.minimum(min_depth, w)
+    return 0.5 * F, min_depth, g, H
+
+
+def _where3(mask: Tensor, a: Vec3, b: Vec3) -> Vec3:
+    return tuple(torch.where(mask, u, v) for u, v in zip(a, b, strict=True))  # type: ignore[return-value]
+
+
+def _dogleg_step(g: list[Tensor], H: list[Tensor], radius: Tensor) -> tuple[Vec3, Tensor]:
+    """Dogleg step inside the trust region, and its length."""
+    h_gn, _ = solve_sym3(H, tuple(-v for v in g))
+    gn_ok = torch.isfinite(h_gn[0]) & torch.isfinite(h_gn[1]) & torch.isfinite(h_gn[2])
+    h_gn = tuple(torch.where(gn_ok, v, torch.zeros_like(v)) for v in h_gn)
+    g2 = dot3(g, g)
+    alpha = g2 / sym3_quadratic_form(H, g)
+    a = tuple(-alpha * v for v in g)  # Cauchy point: minimiser along the steepest descent
+    norm_gn = torch.sqrt(dot3(h_gn, h_gn))
+    norm_a = torch.sqrt(dot3(a, a))
+    clip = torch.clamp(radius / norm_a, max=1.0)  # steepest descent clipped to the region (or H singular)
+    h_sd = tuple(v * clip for v in a)
+    diff = tuple(u - v for u, v in zip(h_gn, a, strict=True))  # dogleg: a + beta (h_gn - a), |h| = radius
+    c = dot3(a, diff)
+    dd = dot3(diff, diff)
+    slack = radius * radius - norm_a * norm_a
+    root = torch.sqrt(c * c + dd * torch.clamp(slack, min=0.0))
+    beta = torch.where(c <= 0, (root - c) / dd, slack / (c + root))
+    h_dl = tuple(u + beta * v for u, v in zip(a, diff, strict=True))
+    take_gn = gn_ok & (norm_gn <= radius)
+    take_sd = ~take_gn & (~gn_ok | (norm_a >= radius))
+    h = _where3(take_gn, h_gn, _where3(take_sd, h_sd, h_dl))  # type: ignore[arg-type]
+    length = torch.where(take_gn, norm_gn, torch.where(take_sd, norm_a * clip, radius))
+    return h, length
+
+
+def dogleg_refine(
+    views: list[View], X0: Vec3, iterations: int = 5, tolerance: float | None = None, early_exit: bool = True
+) -> tuple[Vec3, Tensor, Tensor, Tensor]:
+    """Refine points ``X0`` by Powell's dogleg on the reprojection error.
+
+    Args:
+        views: per-view components from :func:`split_views`.
+        X0: three (B,) components of the starting points.
+        iterations: maximum number of iterations (fixed when exported or compiled).
+        tolerance: relative step/radius size that counts as converged (default: ``0.01 sqrt(eps)`` of the dtype);
+            a point also counts as converged once the predicted gain is within rounding of its cost.
+        early_exit: stop as soon as every point converged (ignored while compiling or exporting).
+
+    Returns:
+        X (three (B,) components), cost (B,) in px^2, smallest depth over the views (B,), converged (B,).
+    """
+    eps = tolerance if tolerance is not None else 1e-2 * torch.finfo(X0[0].dtype).eps ** 0.5
+    rounding = 100 * torch.finfo(X0[0].dtype).eps
+    centred = [_centre(v, X0) for v in views]
+    d = tuple(torch.zeros_like(v) for v in X0)
+    F, depth, g, H = _linearise(centred, d)
+    h_gn, _ = solve_sym3(H, tuple(-v for v in g))
+    radius = torch.nan_to_num(torch.sqrt(dot3(h_gn, h_gn)), nan=1.0, posinf=1.0)
+    scale = torch.sqrt(dot3(X0, X0)) + 1.0
+    radius = torch.clamp(radius, min=eps) * torch.ones_like(scale)
+    active = torch.isfinite(F) & torch.isfinite(g[0] + g[1] + g[2])
+    for _ in range(iterations):
+        if early_exit and not torch.compiler.is_compiling() and not bool(active.any()):
+            break
+        h, h_norm = _dogleg_step(g, H, radius)
+        d_new = tuple(u + v for u, v in zip(d, h, strict=True))
+        F_new, depth_new, g_new, H_new = _linearise(centred, d_new)
+        predicted = -dot3(h, g) - 0.5 * sym3_quadratic_form(H, h)
+        rho = (F - F_new) / predicted
+        accept = active & (rho > 0) & torch.isfinite(F_new) & (predicted > 0)
+        radius = torch.where(active & (rho > 0.75), torch.maximum(radius, 3 * h_norm), radius)
+        radius = torch.where(active & ~(rho >= 0.25), 0.5 * radius, radius)
+        d = _where3(accept, d_new, d)  # type: ignore[arg-type]
+        F = torch.where(accept, F_new, F)
+        depth = torch.where(accept, depth_new, depth)
+        g = [torch.where(accept, u, v) for u, v in zip(g_new, g, strict=True)]
+        H = [torch.where(accept, u, v) for u, v in zip(H_new, H, strict=True)]
+        tiny = eps * scale
+        gain_lost_in_rounding = predicted <= rounding * F
+        active = active & (h_norm > tiny) & (radius > tiny) & ~gain_lost_in_rounding
+    X = tuple(u + v for u, v in zip(X0, d, strict=True))
+    return X, 2 * F, depth, ~active  # type: ignore[return-value]
+
+
+def triangulate_dogleg(
+    P: Tensor,
+    x: Tensor,
+    iterations: int = 5,
+    tolerance: float | None = None,
+    min_parallax: float = 1e-3,
+    early_exit: bool = True,
+) -> DoglegTriangulation:
+    """L2-optimal N-view triangulation: midpoint start, then Powell's dogleg on thesis eq. 2.2.
+
+    Args:
+        P: (B|1, N, 3, 4) cameras (``w > 0`` in front), N >= 2.
+        x: (B, N, 2) observations in pixels.
+        iterations: maximum dogleg iterations; 5 is plenty (most points converge in 2-3).
+        tolerance: relative convergence tolerance (default ``0.01 sqrt(eps)`` of the dtype).
+        min_parallax: near-parallel rays threshold (rad), see :func:`triangulate_midpoint`.
+        early_exit: stop when all points converged (eager mode only).
+
+    Returns:
+        ``DoglegTriangulation`` with points (B, 3), cost (B,) px^2, valid (B,), converged (B,).
+    """
+    check_cameras_and_points(P, x)
+    P, x, finite = finite_inputs(P, x)
+    views = split_views(P, x)
+    X0, lam = midpoint_from_views(views)
+    X0 = tuple(torch.where(torch.isfinite(v), v, torch.zeros_like(v)) for v in X0)
+    X, cost, depth, converged = dogleg_refine(views, X0, iterations, tolerance, early_exit)  # type: ignore[arg-type]
+    valid = finite & (lam >= parallax_threshold(min_parallax)) & (depth > 0) & torch.isfinite(cost)
+    return DoglegTriangulation(torch.stack(X, dim=-1), cost, valid, converged & valid)
+
+
+class TriangulateDogleg(nn.Module):
+    """Module form of :func:`triangulate_dogleg` with a fixed iteration budget (exports to ONNX).
+
+    Forward: cameras (B|1, N, 3, 4) and observations (B, N, 2) in px -> ``DoglegTriangulation``.
+    """
+
+    def __init__(self, iterations: int = 5, tolerance: float | None = None, min_parallax: float = 1e-3) -> None:
+        super().__init__()
+        self.iterations = iterations
+        self.tolerance = tolerance
+        self.min_parallax = min_parallax
+
+    def forward(self, P: Tensor, x: Tensor) -> DoglegTriangulation:
+        return triangulate_dogleg(P, x, self.iterations, self.tolerance, self.min_parallax)

@@ -1,0 +1,95 @@
+"""Midpoint triangulation for N >= 2 views (thesis 2.2), the closed-form start of the dogleg solver."""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import Tensor, nn
+
+from models.geometry.projection import (
+    Triangulation,
+    check_cameras_and_points,
+    finite_inputs,
+    in_front_of_cameras,
+    reprojection_cost,
+)
+from models.geometry.small_linalg import (
+    SYM3_INDEX,
+    adjugate3,
+    matvec3,
+    solve_sym3,
+    sym3_smallest_eigenvalue_estimate,
+)
+from models.geometry.views import View, dot3, split_views
+
+
+
+
+def _ray(view: View) -> tuple[tuple[Tensor, ...], tuple[Tensor, ...]]:
+    """Centre ``C = -M^-1 p4`` and unit direction ``M^-1 x~`` (positive depth side) of one view's ray."""
+    M = tuple(row[:3] for row in view.P)
+    p4 = tuple(row[3] for row in view.P)
+    adj, det = adjugate3(M)  # type: ignore[arg-type]
+    centre = tuple(-c / det for c in matvec3(adj, p4))
+    direction = tuple(c * torch.sign(det) for c in matvec3(adj, (view.x, view.y, torch.ones_like(view.x))))
+    norm = torch.sqrt(dot3(direction, direction))
+    return centre, tuple(v / norm for v in direction)
+
+
+def midpoint_from_views(views: list[View]) -> tuple[tuple[Tensor, Tensor, Tensor], Tensor]:
+    """Point nearest to all rays, ``(sum_i (I - d_i d_i^T))^-1 sum_i (I - d_i d_i^T) C_i``.
+
+    Returns:
+        X: three (B,) components of the points (non-finite for parallel rays); lam: (B,) estimate of the
+        smallest eigenvalue of the normal matrix (``1 - cos(angle)`` for two rays), small for near-parallel rays.
+    """
+    A: list = [0.0] * 6
+    b: list = [0.0] * 3
+    for view in views:
+        C, d = _ray(view)
+        dC = dot3(d, C)
+        for k, (r, s) in enumerate(SYM3_INDEX):
+            A[k] = A[k] + ((1.0 if r == s else 0.0) - d[r] * d[s])
+        for r in range(3):
+            b[r] = b[r] + (C[r] - d[r] * dC)
+    X, det = solve_sym3(A, b)
+    return X, sym3_smallest_eigenvalue_estimate(A, det)
+
+
+def parallax_threshold(min_parallax: float) -> float:
+    """Smallest-eigenvalue threshold equivalent to two rays ``min_parallax`` rad apart."""
+    return 1.0 - math.cos(min_parallax)
+
+
+def triangulate_midpoint(P: Tensor, x: Tensor, min_parallax: float = 1e-3) -> Triangulation:
+    """Point closest to all back-projected rays, in closed form (no iterations).
+
+    Args:
+        P: (B|1, N, 3, 4) cameras, N >= 2.
+        x: (B, N, 2) observations in pixels.
+        min_parallax: rays whose spread is below this angle (rad, the two-view angle equivalent) are flagged
+            near-parallel and the point invalid.
+
+    Returns:
+        ``Triangulation`` with points (B, 3), cost (B,) in px^2 and valid (B,).
+    """
+    check_cameras_and_points(P, x)
+    P, x, finite = finite_inputs(P, x)
+    components, lam = midpoint_from_views(split_views(P, x))
+    X = torch.stack(components, dim=-1)
+    X = torch.where(torch.isfinite(X), X, torch.zeros_like(X))
+    cost = reprojection_cost(P, X, x)
+    valid = finite & (lam >= parallax_threshold(min_parallax)) & in_front_of_cameras(P, X) & torch.isfinite(cost)
+    return Triangulation(X, cost, valid)
+
+
+class TriangulateMidpoint(nn.Module):
+    """Module form of :func:`triangulate_midpoint`: (B|1, N, 3, 4), (B, N, 2) -> ``Triangulation``."""
+
+    def __init__(self, min_parallax: float = 1e-3) -> None:
+        super().__init__()
+        self.min_parallax = min_parallax
+
+    def forward(self, P: Tensor, x: Tensor) -> Triangulation:
+        return triangulate_midpoint(P, x, self.min_parallax)
