@@ -5,19 +5,13 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from models.geometry.midpoint import midpoint_from_views, parallax_threshold
-from models.geometry.projection import (
-    Triangulation,
-    check_cameras_and_points,
-    finite_inputs,
-    in_front_of_cameras,
-    reprojection_cost,
-)
+from models.geometry.midpoint import assemble_triangulation, midpoint_from_views
+from models.geometry.projection import Triangulation, check_cameras_and_points, finite_inputs
 from models.geometry.views import split_views
 
 
 def triangulate_dlt(P: Tensor, x: Tensor, min_parallax: float = 1e-3) -> Triangulation:
-    """Homogeneous DLT: the unit 4-vector minimising ``|A X~|`` with rows ``x_i P_i[2] - P_i[0]``, ``y_i P_i[2] - P_i[1]``.
+    """Homogeneous DLT: the unit 4-vector minimising ``|A X~|``, rows ``x_i P_i[2] - P_i[0]``, ``y_i P_i[2] - P_i[1]``.
 
     Each row is scaled to unit norm (balancing views) and the smallest eigenvector of the 4x4 ``A^T A`` is found
     in fp64 whatever the input dtype. Not meant for export (uses ``torch.linalg.eigh``).
@@ -40,11 +34,8 @@ def triangulate_dlt(P: Tensor, x: Tensor, min_parallax: float = 1e-3) -> Triangu
     _, vectors = torch.linalg.eigh(rows.transpose(1, 2) @ rows)
     Xh = vectors[..., 0]
     X = (Xh[:, :3] / Xh[:, 3:]).to(x.dtype)
-    X = torch.where(torch.isfinite(X), X, torch.zeros_like(X))
     _, lam = midpoint_from_views(split_views(P, x))
-    cost = reprojection_cost(P, X, x)
-    valid = finite & (lam >= parallax_threshold(min_parallax)) & in_front_of_cameras(P, X) & torch.isfinite(cost)
-    return Triangulation(X, cost, valid)
+    return assemble_triangulation(P, x, X, finite, lam, min_parallax)
 
 
 class TriangulateDLT(nn.Module):

@@ -24,8 +24,6 @@ from models.geometry.small_linalg import (
 from models.geometry.views import View, dot3, split_views
 
 
-
-
 def _ray(view: View) -> tuple[tuple[Tensor, ...], tuple[Tensor, ...]]:
     """Centre ``C = -M^-1 p4`` and unit direction ``M^-1 x~`` (positive depth side) of one view's ray."""
     M = tuple(row[:3] for row in view.P)
@@ -62,6 +60,20 @@ def parallax_threshold(min_parallax: float) -> float:
     return 1.0 - math.cos(min_parallax)
 
 
+def assemble_triangulation(
+    P: Tensor, x: Tensor, X: Tensor, finite: Tensor, lam: Tensor, min_parallax: float
+) -> Triangulation:
+    """Cost and validity flags of triangulated points ``X`` (B, 3), non-finite ones replaced by the origin.
+
+    ``finite`` (B,) flags finite inputs and ``lam`` (B,) is the ray-spread estimate of
+    :func:`midpoint_from_views`; a point is valid when finite, not near-parallel and in front of every camera.
+    """
+    X = torch.where(torch.isfinite(X), X, torch.zeros_like(X))
+    cost = reprojection_cost(P, X, x)
+    valid = finite & (lam >= parallax_threshold(min_parallax)) & in_front_of_cameras(P, X) & torch.isfinite(cost)
+    return Triangulation(X, cost, valid)
+
+
 def triangulate_midpoint(P: Tensor, x: Tensor, min_parallax: float = 1e-3) -> Triangulation:
     """Point closest to all back-projected rays, in closed form (no iterations).
 
@@ -77,11 +89,7 @@ def triangulate_midpoint(P: Tensor, x: Tensor, min_parallax: float = 1e-3) -> Tr
     check_cameras_and_points(P, x)
     P, x, finite = finite_inputs(P, x)
     components, lam = midpoint_from_views(split_views(P, x))
-    X = torch.stack(components, dim=-1)
-    X = torch.where(torch.isfinite(X), X, torch.zeros_like(X))
-    cost = reprojection_cost(P, X, x)
-    valid = finite & (lam >= parallax_threshold(min_parallax)) & in_front_of_cameras(P, X) & torch.isfinite(cost)
-    return Triangulation(X, cost, valid)
+    return assemble_triangulation(P, x, torch.stack(components, dim=-1), finite, lam, min_parallax)
 
 
 class TriangulateMidpoint(nn.Module):

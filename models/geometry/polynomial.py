@@ -10,14 +10,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
-from models.geometry.midpoint import midpoint_from_views, parallax_threshold
-from models.geometry.projection import (
-    Triangulation,
-    check_cameras_and_points,
-    finite_inputs,
-    in_front_of_cameras,
-    reprojection_cost,
-)
+from models.geometry.midpoint import assemble_triangulation, midpoint_from_views
+from models.geometry.projection import Triangulation, check_cameras_and_points, finite_inputs
 from models.geometry.views import split_views
 
 
@@ -157,11 +151,8 @@ def triangulate_polynomial(P: Tensor, x: Tensor, min_parallax: float = 1e-3) -> 
     corrected = torch.stack((y1, y2), dim=1)
     X_parts, _ = midpoint_from_views(split_views(P, corrected))
     X = torch.stack(X_parts, dim=-1)
-    X = torch.where(torch.isfinite(X), X, torch.zeros_like(X))
     _, lam = midpoint_from_views(split_views(P, x))
-    cost = reprojection_cost(P, X, x)
-    valid = finite & (lam >= parallax_threshold(min_parallax)) & in_front_of_cameras(P, X) & torch.isfinite(cost)
-    return Triangulation(X, cost, valid)
+    return assemble_triangulation(P, x, X, finite, lam, min_parallax)
 
 
 class TriangulatePolynomial(nn.Module):
