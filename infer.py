@@ -7,8 +7,11 @@ Bad arguments and bad input files end with a one-line message and exit code 2.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+import time
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from data.errors import InputError
 
@@ -53,6 +56,68 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (InputError, FileNotFoundError) as err:
         sys.stderr.write(f"infer.py {args.command}: error: {err}\n")
         return 2
+
+
+# --- triangulate (thesis chapter 2) ----------------------------------------------------------------------------
+
+
+def _triangulate_arguments(p: argparse.ArgumentParser) -> None:
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--bundler", type=Path, metavar="FILE", help="Bundler v0.3 .out reconstruction")
+    source.add_argument("--bal", type=Path, metavar="FILE", help="BAL problem file")
+    p.add_argument("--views", type=int, default=3, metavar="K",
+                   help="triangulate tracks with at least K views from their first K views (default 3)")
+    p.add_argument("--method", choices=("dogleg", "midpoint", "dlt", "polynomial"), default="dogleg")
+    p.add_argument("--dtype", choices=("float64", "float32"), default="float64")
+    p.add_argument("--out", type=Path, metavar="points.ply", help="write the triangulated points as PLY")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+
+
+@command("triangulate", "Triangulate the tracks of a reconstruction and compare with its reference points.",
+         _triangulate_arguments)
+def _triangulate(args: argparse.Namespace) -> int:
+    import torch
+
+    from data.sfm.bal import read_bal
+    from data.sfm.bundler import read_bundler
+    from data.sfm.ply import write_ply
+    from data.sfm.reconstruction import scene_radius
+    from models.geometry.methods import FIXED_VIEWS, METHODS
+
+    if args.views < 2:
+        raise InputError(f"--views must be at least 2, got {args.views}")
+    if FIXED_VIEWS.get(args.method, args.views) != args.views:
+        raise InputError(f"--method {args.method} takes exactly {FIXED_VIEWS[args.method]} views: add --views 2")
+    recon = read_bundler(args.bundler) if args.bundler else read_bal(args.bal)
+    P, x, reference, index = recon.tracks(args.views)
+    if len(index) == 0:
+        raise InputError(f"{args.bundler or args.bal}: no track has {args.views} views")
+    dtype = getattr(torch, args.dtype)
+    P, x = P.to(dtype), x.to(dtype)
+    METHODS[args.method](P[:1], x[:1])  # warm-up
+    start = time.perf_counter()
+    result = METHODS[args.method](P, x)
+    seconds = time.perf_counter() - start
+    valid = result.valid
+    err = (result.points.double() - reference).norm(dim=-1)[valid] / scene_radius(recon.points)
+    report = {
+        "method": args.method,
+        "views": args.views,
+        "count": int(len(index)),
+        "valid": int(valid.sum()),
+        "err3d_median_rel": float(err.median()) if len(err) else float("nan"),
+        "err3d_mean_rel": float(err.mean()) if len(err) else float("nan"),
+        "reproj_rms": float((result.cost[valid].double().sum() / (2 * args.views * max(int(valid.sum()), 1))).sqrt()),
+        "points_per_s": len(index) / seconds,
+    }
+    if args.out:
+        write_ply(args.out, result.points[valid], recon.colors[index][valid])
+    if args.json:
+        print(json.dumps(report))
+    else:
+        for key, value in report.items():
+            print(f"{key:>18}: {value:.6g}" if isinstance(value, float) else f"{key:>18}: {value}")
+    return 0
 
 
 if __name__ == "__main__":
