@@ -1,0 +1,130 @@
+"""FRTM segmentation decoder (thesis ch. 5.3, fig. 5.3-5.4; REFERENCE.md 5.6): DFN-style stages from the
+deepest backbone stage to the shallowest, each with a target segmentation encoder (TSE) that injects the
+resized target-model score, refinement residual blocks (RRB) and a channel attention block (CAB), followed by
+the upsampler from stride 4 to image resolution.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from data.errors import InputError
+
+
+def _conv(cin: int, cout: int, k: int) -> nn.Conv2d:
+    return nn.Conv2d(cin, cout, k, padding=k // 2)
+
+
+class TSE(nn.Module):
+    """Target segmentation encoder: reduce backbone features, concatenate the score, transform.
+
+    1x1 (C_l -> m), ReLU, 1x1 (m -> m); concat score (m + 1); 3x3 (m+1 -> m+1), ReLU, 3x3 (m+1 -> m+1), ReLU,
+    3x3 (m+1 -> m), ReLU. Also returns the global average pool of the reduced features (used by the deepest CAB).
+    """
+
+    def __init__(self, in_channels: int, mdim: int = 64) -> None:
+        super().__init__()
+        self.reduce = nn.Sequential(_conv(in_channels, mdim, 1), nn.ReLU(inplace=True), _conv(mdim, mdim, 1))
+        self.transform = nn.Sequential(
+            _conv(mdim + 1, mdim + 1, 3), nn.ReLU(inplace=True),
+            _conv(mdim + 1, mdim + 1, 3), nn.ReLU(inplace=True),
+            _conv(mdim + 1, mdim, 3), nn.ReLU(inplace=True),
+        )
+
+    def forward(self, features: torch.Tensor, score: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(N, C_l, h, w), (N, 1, h, w) -> (N, m, h, w), pooled (N, m, 1, 1)."""
+        x = self.reduce(features)
+        pooled = F.adaptive_avg_pool2d(x, 1)
+        return self.transform(torch.cat([x, score], 1)), pooled
+
+
+class RRB(nn.Module):
+    """Refinement residual block: 1x1 conv, then x + conv3-BN-ReLU-conv3(x), ReLU."""
+
+    def __init__(self, in_channels: int, channels: int) -> None:
+        super().__init__()
+        self.conv1x1 = _conv(in_channels, channels, 1)
+        self.residual = nn.Sequential(
+            _conv(channels, channels, 3), nn.BatchNorm2d(channels), nn.ReLU(inplace=True), _conv(channels, channels, 3)
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = self.conv1x1(x)
+        return F.relu(x + self.residual(x))
+
+
+class CAB(nn.Module):
+    """Channel attention block: a sigmoid gate from pooled shallow + pooled deeper features scales the shallow
+    features; the (upsampled) deeper features are added. For the deepest stage "deeper" is the TSE pool."""
+
+    def __init__(self, channels: int) -> None:
+        super().__init__()
+        self.gate = nn.Sequential(_conv(2 * channels, channels, 1), nn.ReLU(inplace=True), _conv(channels, channels, 1))
+
+    def forward(self, deeper: torch.Tensor, shallow: torch.Tensor) -> torch.Tensor:
+        pooled = torch.cat([F.adaptive_avg_pool2d(shallow, 1), F.adaptive_avg_pool2d(deeper, 1)], 1)
+        up = F.interpolate(deeper, size=shallow.shape[-2:], mode="bilinear", align_corners=False)
+        return shallow * torch.sigmoid(self.gate(pooled)) + up
+
+
+class Upsampler(nn.Module):
+    """Stride 4 to image size: bicubic 2x, 3x3 (m -> m/2), ReLU, bicubic 2x, bilinear to size, 3x3 (m/2 -> 1)."""
+
+    def __init__(self, mdim: int = 64) -> None:
+        super().__init__()
+        self.conv1 = _conv(mdim, mdim // 2, 3)
+        self.conv2 = _conv(mdim // 2, 1, 3)
+
+    def forward(self, x: torch.Tensor, size: tuple[int, int]) -> torch.Tensor:
+        x = F.interpolate(x, scale_factor=2.0, mode="bicubic", align_corners=False)
+        x = F.relu(self.conv1(x))
+        x = F.interpolate(x, scale_factor=2.0, mode="bicubic", align_corners=False)
+        x = F.interpolate(x, size=size, mode="bilinear", align_corners=False)
+        return self.conv2(x)
+
+
+class SegmentationDecoder(nn.Module):
+    """Decoder from a target-model score and backbone features to a full-resolution logit.
+
+    Args:
+        in_channels: ``{stage: channels}`` of the backbone stages used, e.g. ``ResNetBackbone.channels``.
+        mdim: width of the decoder (FRTM 64).
+        stages: stages in decoding order, deepest first.
+    """
+
+    def __init__(
+        self,
+        in_channels: dict[str, int],
+        mdim: int = 64,
+        stages: tuple[str, ...] | list[str] = ("layer4", "layer3", "layer2", "layer1"),
+    ) -> None:
+        super().__init__()
+        missing = [s for s in stages if s not in in_channels]
+        if missing:
+            raise InputError(f"decoder stages {missing} have no channel count in {in_channels}")
+        self.stages = tuple(stages)
+        self.tse = nn.ModuleDict({s: TSE(in_channels[s], mdim) for s in self.stages})
+        self.rrb1 = nn.ModuleDict({s: RRB(mdim, mdim) for s in self.stages})
+        self.cab = nn.ModuleDict({s: CAB(mdim) for s in self.stages})
+        self.rrb2 = nn.ModuleDict({s: RRB(mdim, mdim) for s in self.stages})
+        self.upsampler = Upsampler(mdim)
+
+    def forward(self, score: torch.Tensor, features: dict[str, torch.Tensor], size: tuple[int, int]) -> torch.Tensor:
+        """Logits (N, 1, H, W) from scores (N, 1, h, w) and features ``{stage: (N or 1, C_l, h_l, w_l)}``.
+
+        Features with batch 1 are shared by all N scores (several objects in one frame).
+        """
+        x = None
+        n = score.shape[0]
+        for stage in self.stages:
+            feat = features[stage]
+            if feat.shape[0] != n:
+                feat = feat.expand(n, -1, -1, -1)
+            s = F.interpolate(score, size=feat.shape[-2:], mode="bilinear", align_corners=False)
+            h, pooled = self.tse[stage](feat, s)
+            h = self.rrb1[stage](h)
+            h = self.cab[stage](pooled if x is None else x, h)
+            x = self.rrb2[stage](h)
+        return self.upsampler(x, size)
