@@ -59,10 +59,8 @@ def finite_inputs(P: Tensor, x: Tensor) -> tuple[Tensor, Tensor, Tensor]:
     """
     finite = torch.isfinite(x).flatten(1).all(1) & torch.isfinite(P).flatten(1).all(1)
     x = torch.where(torch.isfinite(x), x, torch.zeros_like(x))
-    if not torch.isfinite(P).all():
-        canonical = torch.eye(3, 4, dtype=P.dtype, device=P.device)
-        canonical[2, 3] = 1.0
-        P = torch.where(torch.isfinite(P).flatten(2).all(2)[..., None, None], P, canonical)
+    canonical = torch.tensor([[1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 1]], dtype=P.dtype, device=P.device)
+    P = torch.where(torch.isfinite(P).flatten(2).all(2)[..., None, None], P, canonical)
     return P, x, finite
 
 
