@@ -69,6 +69,7 @@ def synthetic_video(
     n_distractors: int = 1,
     late_objects: bool = False,
     motion: float = 1.0,
+    times: list[int] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """One synthetic video.
 
@@ -79,9 +80,11 @@ def synthetic_video(
         n_distractors: unlabelled objects with a colour-jittered copy of a target's texture.
         late_objects: if True, objects 2.. may first appear after frame 0.
         motion: scales speeds, rotations and scale changes (0 = static objects).
+        times: render only these frame indices (same pixels as in the full video); None = all n_frames.
 
     Returns:
-        frames (T, 3, H, W) float32 RGB in [0, 1] and labels (T, H, W) int64 (0 = background).
+        frames (T, 3, H, W) float32 RGB in [0, 1] and labels (T, H, W) int64 (0 = background); T = len(times)
+        when given.
     """
     if n_frames < 1 or height < 16 or width < 16 or n_objects < 1 or n_distractors < 0:
         raise InputError(
@@ -89,7 +92,11 @@ def synthetic_video(
             f"{n_frames}, {height}x{width}, {n_objects}, {n_distractors}"
         )
     gen = torch.Generator().manual_seed(seed)
-    t = torch.arange(n_frames, dtype=torch.float32)
+    idx = torch.arange(n_frames) if times is None else torch.tensor(times, dtype=torch.int64)
+    if idx.numel() == 0 or idx.min() < 0 or idx.max() >= n_frames:
+        raise InputError(f"synthetic video times must lie in [0, {n_frames}), got {times}")
+    t = idx.float()
+    n_out = idx.numel()
     yy, xx = torch.meshgrid(torch.arange(height) + 0.5, torch.arange(width) + 0.5, indexing="ij")
 
     def rnd(low: float, high: float) -> float:
@@ -102,10 +109,10 @@ def synthetic_video(
     gx = (xx / width * 2 - 1)[None] * zoom[:, None, None] + pan[:, None, None, 0] / width
     gy = (yy / height * 2 - 1)[None] * zoom[:, None, None] + pan[:, None, None, 1] / height
     frames = F.grid_sample(
-        bg[None].expand(n_frames, -1, -1, -1), torch.stack([gx, gy], -1), align_corners=False,
+        bg[None].expand(n_out, -1, -1, -1), torch.stack([gx, gy], -1), align_corners=False,
         padding_mode="reflection",
     )
-    labels = torch.zeros(n_frames, height, width, dtype=torch.int64)
+    labels = torch.zeros(n_out, height, width, dtype=torch.int64)
 
     n_layers = n_objects + n_distractors
     textures = [_texture(gen, (64, 64)) for _ in range(n_objects)]
@@ -117,7 +124,7 @@ def synthetic_video(
     for layer in order:
         label = layer + 1 if layer < n_objects else 0
         alpha = _shape(gen, 64)
-        r0 = rnd(0.12, 0.24) * size
+        r0 = rnd(0.15, 0.3) * size
         start = int(rnd(1, n_frames / 2)) if late_objects and 1 <= layer < n_objects and n_frames > 2 else 0
         speed = rnd(0.005, 0.025) * width * motion
         heading = rnd(0, 2 * math.pi)
@@ -130,14 +137,14 @@ def synthetic_video(
         dx, dy = xx[None] - cx[:, None, None], yy[None] - cy[:, None, None]
         s = scale[:, None, None]
         grid = torch.stack([flip * (cos * dx + sin * dy) / s, (-sin * dx + cos * dy) / s], -1)
-        rgba = torch.cat([textures[layer], alpha[None]], 0)[None].expand(n_frames, -1, -1, -1)
+        rgba = torch.cat([textures[layer], alpha[None]], 0)[None].expand(n_out, -1, -1, -1)
         layer_img = F.grid_sample(rgba, grid, align_corners=False, padding_mode="zeros")
         a = layer_img[:, 3:4]
-        a[:start] = 0
+        a[t < start] = 0
         frames = frames * (1 - a) + layer_img[:, :3] * a
         labels = torch.where(a[:, 0] > 0.5, label, labels)
     brightness = 1 + 0.1 * torch.sin(rnd(0, 0.3) * t + rnd(0, 6.3))
-    noise = 0.01 * torch.randn(frames.shape, generator=gen)
+    noise = 0.01 * torch.randn((n_frames, *frames.shape[1:]), generator=gen)[idx]
     frames = (frames * brightness[:, None, None, None] + noise).clamp(0, 1)
     return frames.contiguous(), labels
 

@@ -44,3 +44,9 @@ def test_late_objects_appear_later_and_bad_args() -> None:
     with pytest.raises(InputError, match="n_objects"):
         synthetic_video(0, n_objects=0)
     assert set(synthetic_video_seeds("train", 3)).isdisjoint(synthetic_video_seeds("val", 3))
+
+
+def test_rendering_selected_times_matches_full_video() -> None:
+    full = synthetic_video(9, n_frames=10, height=40, width=56, n_objects=2, late_objects=True)
+    part = synthetic_video(9, n_frames=10, height=40, width=56, n_objects=2, late_objects=True, times=[0, 4, 9])
+    assert torch.equal(part[0], full[0][[0, 4, 9]]) and torch.equal(part[1], full[1][[0, 4, 9]])

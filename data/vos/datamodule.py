@@ -1,0 +1,248 @@
+"""VOS datasets and LightningDataModules: training samples (a reference frame and later test frames of one
+object) and whole evaluation videos, from the synthetic generator or a DAVIS-layout folder."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import lightning as L
+import torch
+import torch.nn.functional as F
+from torch.utils.data import DataLoader, Dataset
+
+from data.errors import InputError
+from data.vos.davis import davis_sequences
+from data.vos.io import VOSSequence
+from data.vos.synthetic import synthetic_video, synthetic_video_seeds
+
+
+def training_sample(
+    frames: torch.Tensor, labels: torch.Tensor, obj: int, ref: int, tests: Sequence[int]
+) -> dict[str, torch.Tensor]:
+    """One training sample: reference frame/mask and test frames/masks of object ``obj`` (float in [0, 1])."""
+    frames = frames.float() / 255 if frames.dtype == torch.uint8 else frames
+    masks = (labels == obj).float()
+    idx = torch.tensor(list(tests))
+    return {"ref_image": frames[ref], "ref_mask": masks[ref], "test_images": frames[idx], "test_masks": masks[idx]}
+
+
+def _resize_video(frames: torch.Tensor, labels: torch.Tensor, scale: float) -> tuple[torch.Tensor, torch.Tensor]:
+    if scale == 1.0:
+        return frames, labels
+    size = (round(frames.shape[-2] * scale), round(frames.shape[-1] * scale))
+    f = F.interpolate(frames.float(), size=size, mode="bilinear", align_corners=False, antialias=True)
+    lab = F.interpolate(labels[:, None].float(), size=size, mode="nearest")[:, 0].long()
+    return f.round().clamp(0, 255).to(torch.uint8), lab
+
+
+class SyntheticTrainingSamples(Dataset):
+    """Samples from fresh synthetic videos: ``len`` videos, video ``i`` seeded by the split's seed range."""
+
+    def __init__(self, n_samples: int, n_test_frames: int = 2, max_gap: int = 8, seed: int = 0, **video) -> None:
+        self.seeds = synthetic_video_seeds("train", n_samples, seed)
+        self.n_test_frames = n_test_frames
+        self.max_gap = max_gap
+        self.video = video
+
+    def __len__(self) -> int:
+        return len(self.seeds)
+
+    def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
+        seed = self.seeds[i]
+        gen = torch.Generator().manual_seed(seed)
+        tests = (torch.randperm(self.max_gap, generator=gen)[: self.n_test_frames] + 1).sort().values.tolist()
+        frames, labels = synthetic_video(seed, n_frames=self.max_gap + 1, times=[0, *tests], **self.video)
+        ids = labels[0].unique()
+        ids = ids[ids > 0]
+        obj = int(ids[torch.randint(len(ids), (), generator=gen)])
+        return training_sample(frames, labels, obj, 0, range(1, len(tests) + 1))
+
+
+class SequenceTrainingSamples(Dataset):
+    """Samples from annotated videos (e.g. DAVIS): random sequence, object, reference frame and test frames
+    within ``max_gap`` after it, with the object at least ``min_pixels`` large in the reference frame."""
+
+    def __init__(
+        self,
+        sequences: list[VOSSequence],
+        n_samples: int,
+        n_test_frames: int = 2,
+        max_gap: int = 8,
+        min_pixels: int = 100,
+        scale: float = 1.0,
+        seed: int = 0,
+    ) -> None:
+        if not sequences:
+            raise InputError("no training sequences")
+        self.sequences = sequences
+        self.n_samples = n_samples
+        self.n_test_frames = n_test_frames
+        self.max_gap = max_gap
+        self.min_pixels = min_pixels
+        self.scale = scale
+        self.seed = seed
+        self._cache: dict[int, tuple[torch.Tensor, torch.Tensor]] = {}
+
+    def __len__(self) -> int:
+        return self.n_samples
+
+    def _load(self, s: int) -> tuple[torch.Tensor, torch.Tensor]:
+        if s not in self._cache:
+            self._cache[s] = _resize_video(*self.sequences[s].load(), self.scale)
+        return self._cache[s]
+
+    def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
+        gen = torch.Generator().manual_seed(self.seed * 1_000_003 + i)
+        for _ in range(100):
+            s = int(torch.randint(len(self.sequences), (), generator=gen))
+            frames, labels = self._load(s)
+            t = frames.shape[0]
+            if t < 2:
+                continue
+            ref = int(torch.randint(t - 1, (), generator=gen))
+            ids = [k for k in labels[ref].unique().tolist() if 0 < k < 255]
+            ids = [k for k in ids if int((labels[ref] == k).sum()) >= self.min_pixels]
+            if not ids:
+                continue
+            obj = ids[int(torch.randint(len(ids), (), generator=gen))]
+            later = torch.arange(ref + 1, min(t, ref + self.max_gap + 1))
+            pick = later[torch.randint(len(later), (self.n_test_frames,), generator=gen)].sort().values
+            return training_sample(frames, labels, obj, ref, pick.tolist())
+        raise InputError("no sequence yields a training sample (objects too small or videos too short)")
+
+
+class VideoDataset(Dataset):
+    """Whole videos for evaluation: ``{"name", "frames" (T, 3, H, W) uint8, "labels" (T, H, W)}``."""
+
+    def __init__(self, videos: list[tuple[str, torch.Tensor, torch.Tensor]]) -> None:
+        self.videos = videos
+
+    def __len__(self) -> int:
+        return len(self.videos)
+
+    def __getitem__(self, i: int) -> dict:
+        name, frames, labels = self.videos[i]
+        return {"name": name, "frames": frames, "labels": labels}
+
+
+def _single(batch: list[dict]) -> dict:
+    return batch[0]
+
+
+def synthetic_videos(
+    split: str, n_videos: int, seed: int = 0, **video
+) -> list[tuple[str, torch.Tensor, torch.Tensor]]:
+    """``n_videos`` held-out synthetic videos as (name, frames uint8, labels)."""
+    out = []
+    for s in synthetic_video_seeds(split, n_videos, seed):
+        frames, labels = synthetic_video(s, **video)
+        out.append((f"synthetic-{s}", (frames * 255).round().to(torch.uint8), labels))
+    return out
+
+
+class SyntheticVOSDataModule(L.LightningDataModule):
+    """Synthetic videos: training samples from fresh videos, validation/test on disjoint seeds.
+
+    Args:
+        train_samples: samples (= videos) per epoch; val_videos / test_videos: held-out videos.
+        n_frames: frames of evaluation videos; height, width: frame size.
+        n_objects / n_distractors: per video (training samples pick one object).
+        eval_objects: objects per evaluation video.
+        max_gap: test frames are drawn from the ``max_gap`` frames after the reference.
+    """
+
+    def __init__(
+        self,
+        train_samples: int = 512,
+        val_videos: int = 4,
+        test_videos: int = 8,
+        n_frames: int = 24,
+        height: int = 128,
+        width: int = 224,
+        n_objects: int = 1,
+        n_distractors: int = 1,
+        eval_objects: int = 1,
+        max_gap: int = 8,
+        n_test_frames: int = 2,
+        batch_size: int = 4,
+        num_workers: int = 0,
+        seed: int = 0,
+    ) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+
+    def _video_args(self, n_objects: int) -> dict:
+        h = self.hparams
+        return {"height": h.height, "width": h.width, "n_objects": n_objects, "n_distractors": h.n_distractors}
+
+    def train_dataloader(self) -> DataLoader:
+        h = self.hparams
+        video = self._video_args(h.n_objects)
+        ds = SyntheticTrainingSamples(h.train_samples, h.n_test_frames, h.max_gap, h.seed, **video)
+        return DataLoader(ds, batch_size=h.batch_size, shuffle=True, num_workers=h.num_workers, drop_last=True)
+
+    def _videos(self, split: str, n: int) -> DataLoader:
+        h = self.hparams
+        videos = synthetic_videos(split, n, h.seed, n_frames=h.n_frames, **self._video_args(h.eval_objects))
+        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=_single)
+
+    def val_dataloader(self) -> DataLoader:
+        return self._videos("val", self.hparams.val_videos)
+
+    def test_dataloader(self) -> DataLoader:
+        return self._videos("test", self.hparams.test_videos)
+
+
+class DavisVOSDataModule(L.LightningDataModule):
+    """DAVIS-layout data: training samples from ``train_sequences`` of ``train_split``; validation/test on
+    ``val_sequences`` (of ``val_split``). Sequence lists default to the whole split.
+
+    Args:
+        root: DAVIS root (``../shared/data/davis2016`` here); resolution: folder such as ``240p`` or ``480p``.
+        scale: resize factor applied to frames and masks after loading (1 = as stored).
+        val_max_frames: cut evaluation videos to this many frames (None = all).
+    """
+
+    def __init__(
+        self,
+        root: str = "../shared/data/davis2016",
+        resolution: str = "240p",
+        train_split: str = "train",
+        val_split: str = "train",
+        train_sequences: list[str] | None = None,
+        val_sequences: list[str] | None = None,
+        train_samples: int = 512,
+        max_gap: int = 8,
+        n_test_frames: int = 2,
+        scale: float = 1.0,
+        val_max_frames: int | None = None,
+        batch_size: int = 4,
+        num_workers: int = 0,
+        seed: int = 0,
+    ) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+
+    def _sequences(self, split: str, names: list[str] | None) -> list[VOSSequence]:
+        h = self.hparams
+        return davis_sequences(h.root, split, h.resolution, names)
+
+    def train_dataloader(self) -> DataLoader:
+        h = self.hparams
+        seqs = self._sequences(h.train_split, h.train_sequences)
+        ds = SequenceTrainingSamples(seqs, h.train_samples, h.n_test_frames, h.max_gap, scale=h.scale, seed=h.seed)
+        return DataLoader(ds, batch_size=h.batch_size, shuffle=True, num_workers=h.num_workers, drop_last=True)
+
+    def _videos(self) -> DataLoader:
+        h = self.hparams
+        videos = []
+        for seq in self._sequences(h.val_split, h.val_sequences):
+            frames, labels = seq.load(h.val_max_frames)
+            videos.append((seq.name, *_resize_video(frames, labels, h.scale)))
+        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=_single)
+
+    def val_dataloader(self) -> DataLoader:
+        return self._videos()
+
+    def test_dataloader(self) -> DataLoader:
+        return self._videos()

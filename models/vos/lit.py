@@ -1,0 +1,169 @@
+"""LightningModule for FRTM (REFERENCE.md 5.7): trains the decoder (optionally the backbone too) with the
+target model in the loop, and evaluates the full tracker on whole videos with the DAVIS J&F protocol.
+
+Training step, per sample: augment the reference frame (first-frame augmentation), fit a fresh target model
+on it with the optimizer module (C = 32, lambda = (1e-5, 1e-4), no pixel weights), apply it to the test
+frames (no updates), decode, and take a binary cross-entropy loss per test frame. With ``train_backbone`` the
+backbone is trained as well; ``backprop_through_optimizer`` then also differentiates through the unrolled
+optimizer (its explicit Jacobian products are ordinary differentiable ops), so the features learn to suit the
+target model; otherwise the fitted filters are treated as constants.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from pathlib import Path
+
+import lightning as L
+import torch
+import torch.nn.functional as F
+
+from models.backbones import ResNetBackbone
+from models.vos.augment import first_frame_augment
+from models.vos.decoder import SegmentationDecoder
+from models.vos.metrics import evaluate_sequence, summarize, write_csv
+from models.vos.optimizer import GaussNewtonCG, build_optimizer
+from models.vos.target_model import apply_filter, project, target_model_init
+from models.vos.tracker import FRTMTracker
+
+
+class FRTMSegmentation(L.LightningModule):
+    """FRTM video object segmentation system.
+
+    Args:
+        backbone: torchvision ResNet name; weights: torchvision weights name or None (random init).
+        train_backbone: train the backbone too (needed without pretrained weights).
+        backprop_through_optimizer: with ``train_backbone``, differentiate through the target-model fit.
+        mdim: decoder width (64).
+        feature_layer: stage the target model reads (layer3, stride 16).
+        train_channels, train_num_aug, train_reg, train_schedule, train_optimizer: target model fitted in
+            training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
+        lr, weight_decay, lr_step, lr_gamma: Adam (amsgrad) and StepLR (FRTM 1e-3, 1e-5, 127, 0.1).
+        tracker: keyword arguments of ``FRTMTracker`` for validation, test and inference.
+        seed: seeds augmentation and filter initialisation.
+    """
+
+    def __init__(
+        self,
+        backbone: str = "resnet18",
+        weights: str | None = None,
+        train_backbone: bool = False,
+        backprop_through_optimizer: bool = False,
+        mdim: int = 64,
+        feature_layer: str = "layer3",
+        train_channels: int = 32,
+        train_num_aug: int = 15,
+        train_reg: tuple[float, float] = (1e-5, 1e-4),
+        train_schedule: tuple[int, ...] = (5, 10, 10, 10, 10),
+        train_optimizer: str = "gauss_newton",
+        lr: float = 1e-3,
+        weight_decay: float = 1e-5,
+        lr_step: int = 127,
+        lr_gamma: float = 0.1,
+        tracker: dict | None = None,
+        seed: int = 0,
+    ) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+        self.backbone = ResNetBackbone(backbone, weights, frozen=not train_backbone)
+        self.decoder = SegmentationDecoder(self.backbone.channels, mdim)
+        optimizer = build_optimizer(train_optimizer, train_schedule, train_reg)
+        if isinstance(optimizer, GaussNewtonCG):
+            optimizer.direction_forget = 0.9**75
+        self.fit_optimizer = optimizer
+        self._eval: dict[str, dict[int, dict[str, float]]] = {}
+        self._frames = 0
+        self._seconds = 0.0
+
+    def make_tracker(self, use_decoder: bool = True, **overrides) -> FRTMTracker:
+        """A tracker sharing this module's backbone and decoder (``tracker`` hyper-parameters + overrides)."""
+        kwargs = {"feature_layer": self.hparams.feature_layer, **(self.hparams.tracker or {}), **overrides}
+        return FRTMTracker(self.backbone, self.decoder, use_decoder=use_decoder, **kwargs).eval()
+
+    def forward(self, frames: torch.Tensor, first_mask: torch.Tensor) -> torch.Tensor:
+        """Segment a video: frames (T, 3, H, W) in [0, 1] or uint8, first-frame labels (H, W) -> (T, H, W)."""
+        return torch.stack(list(self.make_tracker().segment(frames, {0: first_mask})))
+
+    def _fit_target_models(self, images: torch.Tensor, masks: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Fit target models on augmented reference frames: (B, 3, H, W), (B, H, W) -> W_p, W_f."""
+        h = self.hparams
+        aug = [first_frame_augment(i, m, h.train_num_aug, h.seed + int(self.global_step) * 131 + j)
+               for j, (i, m) in enumerate(zip(images.detach(), masks, strict=True))]
+        aug_images = torch.stack([a[0] for a in aug])
+        aug_masks = torch.stack([a[1] for a in aug])
+        b, k = aug_masks.shape[:2]
+        differentiable = self.training and h.train_backbone and h.backprop_through_optimizer
+        with contextlib.nullcontext() if differentiable else torch.no_grad():
+            x = self.backbone(aug_images.flatten(0, 1))[h.feature_layer]
+            x = x.view(b, k, *x.shape[1:])
+            gamma = x.new_ones(b, k)
+            gamma[:, 0] = 2
+            gamma = gamma / gamma.sum(1, keepdim=True)
+            wp, wf = target_model_init(b, x.shape[2], h.train_channels, 3, h.seed, x.dtype, x.device)
+            wp, wf, _, _ = self.fit_optimizer(x, aug_masks, None, gamma, wf, wp)
+        return wp, wf
+
+    def training_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> torch.Tensor:
+        wp, wf = self._fit_target_models(batch["ref_image"], batch["ref_mask"])
+        test = batch["test_images"]
+        b, t = test.shape[:2]
+        feats = self.backbone(test.flatten(0, 1))
+        x = feats[self.hparams.feature_layer]
+        score = apply_filter(project(x.view(b, t, *x.shape[1:]), wp), wf)
+        logits = self.decoder(score.flatten(0, 1)[:, None], feats, tuple(test.shape[-2:]))
+        loss = F.binary_cross_entropy_with_logits(logits[:, 0], batch["test_masks"].flatten(0, 1))
+        with torch.no_grad():
+            pred = logits[:, 0] > 0
+            gt = batch["test_masks"].flatten(0, 1) > 0.5
+            iou = ((pred & gt).flatten(1).sum(1) / (pred | gt).flatten(1).sum(1).clamp_min(1)).mean()
+        self.log("train/loss", loss, prog_bar=True)
+        self.log("train/iou", iou, prog_bar=True)
+        return loss
+
+    def _evaluate(self, batch: dict) -> None:
+        frames, labels = batch["frames"], batch["labels"]
+        tracker = self.make_tracker()
+        start = time.perf_counter()
+        pred = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+        self._seconds += time.perf_counter() - start
+        self._frames += frames.shape[0]
+        self._eval[batch["name"]] = evaluate_sequence(pred.cpu(), labels.cpu())
+
+    def on_validation_epoch_start(self) -> None:
+        self._eval, self._frames, self._seconds = {}, 0, 0.0
+
+    on_test_epoch_start = on_validation_epoch_start
+
+    def validation_step(self, batch: dict, batch_idx: int) -> None:
+        self._evaluate(batch)
+
+    def test_step(self, batch: dict, batch_idx: int) -> None:
+        self._evaluate(batch)
+
+    def _report(self, stage: str) -> dict[str, float]:
+        glob = summarize(self._eval)
+        fps = self._frames / max(self._seconds, 1e-9)
+        self.log_dict({f"{stage}/jf": glob["J&F-Mean"], f"{stage}/j": glob["J-Mean"], f"{stage}/f": glob["F-Mean"],
+                       f"{stage}/fps": fps}, prog_bar=stage == "val")
+        return {**glob, "FPS": fps}
+
+    def on_validation_epoch_end(self) -> None:
+        if self._eval:
+            self._report("val")
+
+    def on_test_epoch_end(self) -> None:
+        if not self._eval:
+            return
+        result = self._report("test")
+        log_dir = Path(self.trainer.log_dir or ".") if self.trainer is not None else Path(".")
+        write_csv(self._eval, log_dir / "per_sequence.csv")
+        print(f"J&F {100 * result['J&F-Mean']:.1f}  J {100 * result['J-Mean']:.1f}  F {100 * result['F-Mean']:.1f}  "
+              f"FPS {result['FPS']:.2f}  ({len(self._eval)} sequences; per object: {log_dir / 'per_sequence.csv'})")
+
+    def configure_optimizers(self):
+        h = self.hparams
+        params = [p for p in self.parameters() if p.requires_grad]
+        opt = torch.optim.Adam(params, lr=h.lr, weight_decay=h.weight_decay, amsgrad=True)
+        sched = torch.optim.lr_scheduler.StepLR(opt, step_size=h.lr_step, gamma=h.lr_gamma)
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "epoch"}}

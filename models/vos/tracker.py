@@ -1,0 +1,260 @@
+"""FRTM online inference over a video (thesis ch. 5.3, REFERENCE.md 5.3-5.4, 5.8).
+
+frame -> backbone features -> per object: target model W_f * (W_p * x) on stride-16 features -> coarse score
+-> decoder (with all backbone stages) -> logit -> soft aggregation over objects -> labels; the merged soft
+masks and projected features go into each object's memory, and W_f is re-optimised every ``update_every``
+frames. A new object (in the first frame or later) gets the first-frame augmentation, a joint W_p/W_f fit,
+then W_p is frozen. With ``use_decoder=False`` the upsampled target-model score thresholded at 0.5 replaces
+the decoder (the ``target_model_only`` baseline).
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from collections.abc import Iterable, Iterator
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from data.errors import InputError
+from models.backbones import ResNetBackbone
+from models.vos.augment import first_frame_augment
+from models.vos.decoder import SegmentationDecoder
+from models.vos.memory import Memory, memory_init, memory_insert
+from models.vos.merge import merge_objects
+from models.vos.optimizer import build_optimizer
+from models.vos.target_model import apply_filter, hinge_pixel_weights, project, target_model_init
+
+COMPONENTS = ("backbone", "target_model", "decoder", "update", "init")
+
+
+class FRTMTracker(nn.Module):
+    """Video object segmentation with fast and robust target models.
+
+    Args:
+        backbone: feature extractor returning ``feature_layer`` and the decoder's stages.
+        decoder: segmentation decoder, or None (target-model-only segmentation).
+        feature_layer: stage the target model reads (stride 16; FRTM: ResNet layer3).
+        channels: C, the projection width (96 at inference, 32 in training).
+        kernel_size: W_f size (3).
+        num_aug: first-frame samples including the original (5).
+        memory_size: memory capacity (80); learning_rate: memory weight decay rate (0.1).
+        update_every: re-optimise W_f when frame % update_every == 0 (8).
+        init_schedule / update_schedule: CG iterations per GN step ((5, 10, 10, 10, 10) / (10,)).
+        reg: (lambda_p, lambda_f) (1e-4, 1e-2).
+        optimizer: ``gauss_newton`` or ``steepest_descent`` (sum of the schedule as steps).
+        pixel_weighting: use the hinge pixel weights (fg_target 0.1).
+        min_update_pixels: an object's frame enters its memory only with this many pixels above 0.5 (10).
+        label_stride: memory labels are stored at 1/label_stride of the image size (1 = full resolution).
+        use_decoder: False segments by thresholding the upsampled target-model score.
+        seed: seeds the augmentation and the filter initialisation.
+    """
+
+    def __init__(
+        self,
+        backbone: ResNetBackbone,
+        decoder: SegmentationDecoder | None = None,
+        feature_layer: str = "layer3",
+        channels: int = 96,
+        kernel_size: int = 3,
+        num_aug: int = 5,
+        memory_size: int = 80,
+        learning_rate: float = 0.1,
+        update_every: int = 8,
+        init_schedule: tuple[int, ...] | list[int] = (5, 10, 10, 10, 10),
+        update_schedule: tuple[int, ...] | list[int] = (10,),
+        reg: tuple[float, float] | list[float] = (1e-4, 1e-2),
+        optimizer: str = "gauss_newton",
+        pixel_weighting: bool = True,
+        fg_target: float = 0.1,
+        min_update_pixels: int = 10,
+        label_stride: int = 1,
+        use_decoder: bool = True,
+        seed: int = 0,
+    ) -> None:
+        super().__init__()
+        if feature_layer not in backbone.channels:
+            raise InputError(f"backbone does not return the target-model stage {feature_layer!r}")
+        self.backbone = backbone
+        self.decoder = decoder
+        self.feature_layer = feature_layer
+        self.channels = channels
+        self.kernel_size = kernel_size
+        self.num_aug = num_aug
+        self.memory_size = memory_size
+        self.learning_rate = learning_rate
+        self.update_every = update_every
+        self.init_optimizer = build_optimizer(optimizer, init_schedule, reg)
+        self.update_optimizer = build_optimizer(optimizer, update_schedule, reg)
+        self.pixel_weighting = pixel_weighting
+        self.fg_target = fg_target
+        self.min_update_pixels = min_update_pixels
+        self.label_stride = label_stride
+        self.use_decoder = use_decoder and decoder is not None
+        self.seed = seed
+        self.timings: dict[str, float] = defaultdict(float)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the current video."""
+        self.ids: list[int] = []
+        self.wp: torch.Tensor | None = None
+        self.wf: torch.Tensor | None = None
+        self.memory: Memory | None = None
+        self.cg_state = None
+        self.frame = 0
+
+    def _tic(self, device: torch.device) -> float:
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
+        return time.perf_counter()
+
+    def _toc(self, name: str, start: float, device: torch.device) -> None:
+        self.timings[name] += (self._tic(device) - start) * 1000
+
+    def _label_size(self, size: tuple[int, int]) -> tuple[int, int]:
+        return (max(1, size[0] // self.label_stride), max(1, size[1] // self.label_stride))
+
+    def _to_label_res(self, masks: torch.Tensor) -> torch.Tensor:
+        """(N, H, W) -> (N, H', W') soft masks at the memory label resolution."""
+        if self.label_stride == 1:
+            return masks
+        return F.interpolate(masks[:, None], size=self._label_size(masks.shape[-2:]), mode="area")[:, 0]
+
+    def _pixel_weights(self, labels: torch.Tensor) -> torch.Tensor:
+        if not self.pixel_weighting:
+            return torch.ones_like(labels)
+        return hinge_pixel_weights(labels, self.fg_target, self.min_update_pixels)
+
+    def _optimize_filters(self) -> None:
+        n = int((self.memory.weights > 0).sum(1).max())  # only filled slots take part
+        mem = self.memory
+        _, self.wf, self.cg_state, _ = self.update_optimizer(
+            mem.features[:, :n], mem.labels[:, :n], mem.pixel_weights[:, :n], mem.weights[:, :n], self.wf,
+            state=self.cg_state,
+        )
+
+    def add_objects(self, image: torch.Tensor, labels: torch.Tensor, ids: list[int]) -> None:
+        """Train target models for new objects ``ids`` whose masks are ``labels == id`` in ``image``.
+
+        Args:
+            image: (3, H, W) RGB in [0, 1]; labels: (H, W) int label map.
+        """
+        device = image.device
+        start = self._tic(device)
+        if any(i in self.ids for i in ids):
+            raise InputError(f"objects {sorted(set(ids) & set(self.ids))} are already tracked")
+        images, masks = [], []
+        for i, obj in enumerate(ids):
+            mask = (labels == obj).to(image.dtype)
+            if mask.sum() == 0:
+                raise InputError(f"the first mask of object {obj} is empty")
+            im, m = first_frame_augment(image, mask, self.num_aug, self.seed + 7919 * i + obj)
+            images.append(im)
+            masks.append(m)
+        b, k = len(ids), self.num_aug
+        feats = torch.cat([self.backbone(x[None])[self.feature_layer] for x in torch.cat(images)])
+        x = feats.view(b, k, *feats.shape[1:])
+        y = self._to_label_res(torch.cat(masks)).view(b, k, *self._label_size(image.shape[-2:]))
+        v = self._pixel_weights(y)
+        gamma = x.new_ones(b, k)
+        gamma[:, 0] = 2
+        gamma = gamma / gamma.sum(1, keepdim=True)
+        wp, wf = target_model_init(b, x.shape[2], self.channels, self.kernel_size, self.seed, x.dtype, x.device)
+        wp, wf, _, _ = self.init_optimizer(x, y, None if not self.pixel_weighting else v, gamma, wf, wp)
+        memory = memory_init(project(x, wp), y, v, self.memory_size)
+        if self.ids:
+            mem = self.memory
+            memory = Memory(*(torch.cat([a, c], 0) for a, c in zip(mem, memory, strict=True)))
+            wp, wf = torch.cat([self.wp, wp]), torch.cat([self.wf, wf])
+        self.ids += list(ids)
+        self.wp, self.wf, self.memory, self.cg_state = wp, wf, memory, None
+        self._optimize_filters()
+        self._toc("init", start, device)
+
+    def step(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Segment one frame and update the memory.
+
+        Args:
+            image: (3, H, W) RGB in [0, 1].
+
+        Returns:
+            labels (H, W) int64, per-object merged soft masks (N, H, W) for the memory, projected features
+            (N, 1, C, h, w).
+        """
+        if not self.ids:
+            raise InputError("no object is tracked: give a first-frame mask")
+        device = image.device
+        start = self._tic(device)
+        feats = self.backbone(image[None])
+        self._toc("backbone", start, device)
+        start = self._tic(device)
+        n = len(self.ids)
+        x = feats[self.feature_layer][:, None].expand(n, -1, -1, -1, -1)
+        z = project(x, self.wp)
+        score = apply_filter(z, self.wf)  # (N, 1, h, w)
+        self._toc("target_model", start, device)
+        start = self._tic(device)
+        size = tuple(image.shape[-2:])
+        if self.use_decoder:
+            logits = self.decoder(score, feats, size)[:, 0]
+        else:
+            up = F.interpolate(score, size=size, mode="bilinear", align_corners=False)[:, 0]
+            logits = (up - 0.5) * 10  # score 0.5 <-> probability 0.5
+        self._toc("decoder", start, device)
+        labels, soft = merge_objects(logits, torch.tensor(self.ids))
+        return labels, soft, z
+
+    def update(self, soft: torch.Tensor, z: torch.Tensor) -> None:
+        """Insert merged soft masks (N, H, W) and projected features into memory; optimise every k frames."""
+        device = soft.device
+        start = self._tic(device)
+        y = self._to_label_res(soft)
+        valid = (y > 0.5).flatten(1).sum(1) >= self.min_update_pixels
+        self.memory = memory_insert(self.memory, z[:, 0], y, self._pixel_weights(y[:, None])[:, 0], valid,
+                                    self.learning_rate)
+        if self.frame % self.update_every == 0:
+            self._optimize_filters()
+        self._toc("update", start, device)
+
+    @torch.inference_mode()
+    def segment(
+        self, frames: Iterable[torch.Tensor], masks: dict[int, torch.Tensor]
+    ) -> Iterator[torch.Tensor]:
+        """Segment a video.
+
+        Args:
+            frames: (3, H, W) RGB frames in [0, 1] (float tensors, or uint8 scaled by 1/255).
+            masks: ``{frame index: (H, W) label map}``; frame 0 must be present; objects whose id first
+                appears in a later map start there (their given mask overrides the prediction).
+
+        Yields:
+            (H, W) int64 label maps, one per frame.
+        """
+        if 0 not in masks:
+            raise InputError("the first frame has no mask")
+        self.reset()
+        for t, frame in enumerate(frames):
+            image = frame.float() / 255 if frame.dtype == torch.uint8 else frame
+            given = masks.get(t)
+            if given is not None and given.shape != image.shape[-2:]:
+                raise InputError(f"mask of frame {t} is {tuple(given.shape)}, the frame {tuple(image.shape[-2:])}")
+            self.frame = t
+            new_ids = [] if given is None else [i for i in given.unique().tolist() if i not in (0, 255)
+                                                 and i not in self.ids]
+            if t == 0 and not new_ids:
+                raise InputError("the first-frame mask is empty: it labels no object")
+            if self.ids:
+                labels, probs_soft, z = self.step(image)
+                if new_ids:
+                    new = torch.isin(given, torch.tensor(new_ids, device=given.device))
+                    labels = torch.where(new, given.to(labels.dtype), labels)
+                    probs_soft = probs_soft * (~new).to(probs_soft.dtype)
+                self.update(probs_soft, z)
+            else:
+                labels = torch.where(torch.isin(given, torch.tensor(new_ids)), given, 0).long()
+            if new_ids:
+                self.add_objects(image, given.to(image.device), new_ids)
+            yield labels

@@ -1,0 +1,58 @@
+"""FRTM tracker loop on synthetic videos: segmentation quality of the target model alone on slow videos,
+late objects, timings and input errors."""
+
+import pytest
+import torch
+
+from data.errors import InputError
+from data.vos.synthetic import synthetic_video
+from models.backbones import ResNetBackbone
+from models.vos.decoder import SegmentationDecoder
+from models.vos.metrics import evaluate_sequence
+from models.vos.tracker import COMPONENTS, FRTMTracker
+
+
+@pytest.fixture(scope="module")
+def backbone() -> ResNetBackbone:
+    torch.manual_seed(0)
+    return ResNetBackbone("resnet18", stages=("layer1", "layer2", "layer3", "layer4"))
+
+
+def small_tracker(backbone, decoder=None, **kw) -> FRTMTracker:
+    args = {"channels": 16, "num_aug": 3, "memory_size": 12, "init_schedule": (3, 5), "update_schedule": (5,),
+            "update_every": 2}
+    return FRTMTracker(backbone, decoder, **{**args, **kw})
+
+
+def test_target_model_tracks_slow_object_better_than_copying(backbone) -> None:
+    frames, labels = synthetic_video(11, n_frames=8, height=96, width=128, n_distractors=0, motion=0.6)
+    tracker = small_tracker(backbone)
+    pred = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+    assert pred.shape == labels.shape and torch.equal(pred[0], labels[0])
+    ours = evaluate_sequence(pred, labels)[1]["J-Mean"]
+    copy = evaluate_sequence(labels[:1].expand_as(labels), labels)[1]["J-Mean"]
+    assert ours > 0.5 and ours > copy
+    assert set(tracker.timings) == set(COMPONENTS) and all(v > 0 for v in tracker.timings.values())
+
+
+def test_late_object_and_decoder_path(backbone) -> None:
+    frames, labels = synthetic_video(4, n_frames=6, height=64, width=96, n_objects=2, n_distractors=0, motion=0.3)
+    first = torch.where(labels[0] == 1, 1, 0)
+    decoder = SegmentationDecoder(backbone.channels, mdim=8).eval()
+    tracker = small_tracker(backbone, decoder)
+    with torch.inference_mode():
+        pred = torch.stack(list(tracker.segment(frames, {0: first, 3: labels[3]})))
+    assert not (pred[:3] == 2).any()
+    assert torch.equal(pred[3] == 2, labels[3] == 2) and tracker.ids == [1, 2]
+    assert tracker.memory.weights.shape == (2, 12)
+
+
+def test_bad_inputs(backbone) -> None:
+    frames, labels = synthetic_video(1, n_frames=3, height=48, width=64)
+    tracker = small_tracker(backbone)
+    with pytest.raises(InputError, match="first frame has no mask"):
+        list(tracker.segment(frames, {1: labels[1]}))
+    with pytest.raises(InputError, match="empty"):
+        list(tracker.segment(frames, {0: torch.zeros_like(labels[0])}))
+    with pytest.raises(InputError, match="mask of frame 0"):
+        list(tracker.segment(frames, {0: labels[0, :40]}))
