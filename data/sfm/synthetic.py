@@ -17,23 +17,24 @@ class SyntheticScene(NamedTuple):
         observations: (B, N, 2) noisy image points in px (origin at the top-left pixel centre).
         points: (B, 3) true 3D points.
         clean: (B, N, 2) noise-free projections in px.
+        intrinsics: (3, 3) the calibration matrix K shared by all cameras.
     """
 
     cameras: Tensor
     observations: Tensor
     points: Tensor
     clean: Tensor
+    intrinsics: Tensor
 
 
-def look_at_camera(center: Tensor, focal: float, principal: tuple[float, float]) -> Tensor:
-    """Camera matrix (3, 4) at ``center`` (3,) looking at the origin, y axis of the world pointing up."""
+def look_at_camera(center: Tensor, K: Tensor) -> Tensor:
+    """Camera matrix ``K [R | -R C]`` (3, 4) at ``center`` (3,) looking at the origin, world y axis up."""
     z = -center / center.norm()
     up = torch.tensor([0.0, 1.0, 0.0], dtype=center.dtype)
     x = torch.linalg.cross(up, z)
     x = x / x.norm()
     y = torch.linalg.cross(z, x)
     R = torch.stack((x, y, z))
-    K = torch.tensor([[focal, 0.0, principal[0]], [0.0, focal, principal[1]], [0.0, 0.0, 1.0]], dtype=center.dtype)
     return K @ torch.cat((R, (-R @ center).unsqueeze(-1)), dim=-1)
 
 
@@ -59,10 +60,11 @@ def synthetic_cube_scene(
     gen = torch.Generator().manual_seed(seed)
     angles = [angle_step * (i - (num_views - 1) / 2) for i in range(num_views)]
     centers = [torch.tensor([radius * math.sin(a), 0.0, -radius * math.cos(a)], dtype=torch.float64) for a in angles]
-    P = torch.stack([look_at_camera(c, focal, (500.0, 500.0)) for c in centers]).unsqueeze(0)
+    K = torch.tensor([[focal, 0.0, 500.0], [0.0, focal, 500.0], [0.0, 0.0, 1.0]], dtype=torch.float64)
+    P = torch.stack([look_at_camera(c, K) for c in centers]).unsqueeze(0)
     X = (torch.rand(num_points, 3, generator=gen, dtype=torch.float64) * 2 - 1) * half_size
     Xh = torch.cat((X, torch.ones(num_points, 1, dtype=torch.float64)), dim=-1)
     p = torch.einsum("nij,bj->bni", P[0], Xh)
     clean = p[..., :2] / p[..., 2:]
     noisy = clean + noise_px * torch.randn(clean.shape, generator=gen, dtype=torch.float64)
-    return SyntheticScene(P.to(dtype), noisy.to(dtype), X.to(dtype), clean.to(dtype))
+    return SyntheticScene(P.to(dtype), noisy.to(dtype), X.to(dtype), clean.to(dtype), K.to(dtype))

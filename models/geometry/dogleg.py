@@ -170,6 +170,7 @@ def triangulate_dogleg(
     tolerance: float | None = None,
     min_parallax: float = 1e-3,
     early_exit: bool = True,
+    chunk_size: int | None = None,
 ) -> DoglegTriangulation:
     """L2-optimal N-view triangulation: midpoint start, then Powell's dogleg on thesis eq. 2.2.
 
@@ -180,11 +181,20 @@ def triangulate_dogleg(
         tolerance: relative convergence tolerance (default ``0.01 sqrt(eps)`` of the dtype).
         min_parallax: near-parallel rays threshold (rad), see :func:`triangulate_midpoint`.
         early_exit: stop when all points converged (eager mode only).
+        chunk_size: solve this many points at a time (keeps the working set in cache for millions of points;
+            each chunk also stops as soon as its own points converged). None: all at once.
 
     Returns:
         ``DoglegTriangulation`` with points (B, 3), cost (B,) px^2, valid (B,), converged (B,).
     """
     check_cameras_and_points(P, x)
+    if chunk_size is not None and x.shape[0] > chunk_size:
+        parts = [
+            triangulate_dogleg(P if P.shape[0] == 1 else P[i : i + chunk_size], x[i : i + chunk_size],
+                               iterations, tolerance, min_parallax, early_exit)
+            for i in range(0, x.shape[0], chunk_size)
+        ]
+        return DoglegTriangulation(*(torch.cat(field) for field in zip(*parts, strict=True)))
     P, x, finite = finite_inputs(P, x)
     views = split_views(P, x)
     X0, lam = midpoint_from_views(views)
