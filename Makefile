@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(PY) -m demo
+	$(PY) infer.py demo
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

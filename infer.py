@@ -80,43 +80,40 @@ def _triangulate(args: argparse.Namespace) -> int:
 
     from data.sfm.bal import read_bal
     from data.sfm.bundler import read_bundler
+    from data.sfm.evaluation import evaluate_reconstruction
     from data.sfm.ply import write_ply
-    from data.sfm.reconstruction import scene_radius
-    from models.geometry.methods import FIXED_VIEWS, METHODS
 
     if args.views < 2:
         raise InputError(f"--views must be at least 2, got {args.views}")
-    if FIXED_VIEWS.get(args.method, args.views) != args.views:
-        raise InputError(f"--method {args.method} takes exactly {FIXED_VIEWS[args.method]} views: add --views 2")
     recon = read_bundler(args.bundler) if args.bundler else read_bal(args.bal)
-    P, x, reference, index = recon.tracks(args.views)
-    if len(index) == 0:
-        raise InputError(f"{args.bundler or args.bal}: no track has {args.views} views")
-    dtype = getattr(torch, args.dtype)
-    P, x = P.to(dtype), x.to(dtype)
-    METHODS[args.method](P[:1], x[:1])  # warm-up
-    start = time.perf_counter()
-    result = METHODS[args.method](P, x)
-    seconds = time.perf_counter() - start
-    valid = result.valid
-    err = (result.points.double() - reference).norm(dim=-1)[valid] / scene_radius(recon.points)
-    report = {
-        "method": args.method,
-        "views": args.views,
-        "count": int(len(index)),
-        "valid": int(valid.sum()),
-        "err3d_median_rel": float(err.median()) if len(err) else float("nan"),
-        "err3d_mean_rel": float(err.mean()) if len(err) else float("nan"),
-        "reproj_rms": float((result.cost[valid].double().sum() / (2 * args.views * max(int(valid.sum()), 1))).sqrt()),
-        "points_per_s": len(index) / seconds,
-    }
+    report, result, index = evaluate_reconstruction(recon, args.views, args.method, getattr(torch, args.dtype))
     if args.out:
-        write_ply(args.out, result.points[valid], recon.colors[index][valid])
+        write_ply(args.out, result.points[result.valid], recon.colors[index][result.valid])
     if args.json:
         print(json.dumps(report))
     else:
         for key, value in report.items():
             print(f"{key:>18}: {value:.6g}" if isinstance(value, float) else f"{key:>18}: {value}")
+    return 0
+
+# --- demo -------------------------------------------------------------------------------------------------------
+
+DEMOS = {"triangulation": "bench.triangulation"}
+
+
+def _demo_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--only", nargs="+", choices=tuple(DEMOS), help="run only these parts (default: all)")
+
+
+@command("demo", "Run every capability on the project's own synthetic data and print the results.", _demo_arguments)
+def _demo(args: argparse.Namespace) -> int:
+    import importlib
+
+    for name in args.only or DEMOS:
+        start = time.perf_counter()
+        print(f"\n=== {name} " + "=" * (70 - len(name)))
+        importlib.import_module(DEMOS[name]).demo()
+        print(f"({name}: {time.perf_counter() - start:.0f} s)")
     return 0
 
 

@@ -26,6 +26,8 @@ import torch
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from data.sfm.bundler import read_bundler  # noqa: E402
+from data.sfm.evaluation import evaluate_reconstruction  # noqa: E402
 from data.sfm.synthetic import SyntheticScene, synthetic_cube_scene  # noqa: E402
 from models.geometry import (  # noqa: E402
     fundamental_from_cameras,
@@ -207,10 +209,21 @@ def format_table(report: dict) -> str:
 
 
 def demo() -> None:
-    """Small side-by-side run for ``make demo``."""
+    """Small side-by-side run for ``make demo``: the synthetic cube, then the real reconstruction when present."""
     report, _ = run(points=20_000, repeats=2, pycolmap_points=2000, methods=DEFAULT_METHODS)
     print(f"Triangulation, synthetic cube: {report['config']['points']} points, sigma = 1 px")
     print(format_table(report))
+    path = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "sfm" / "Balbianello.out"
+    if not path.is_file():
+        print("(../shared/data/sfm/Balbianello.out not found: real-data part skipped)")
+        return
+    recon = read_bundler(path)
+    print(f"\nTriangulation, {path.name} (bundle-adjusted points as reference), first 3 views of each track")
+    print(f"{'method':<12}{'points':>8}{'3D err/radius med':>19}{'mean':>10}{'reproj RMS px':>15}")
+    for method in ("dogleg", "midpoint", "dlt"):
+        r, _, _ = evaluate_reconstruction(recon, 3, method)
+        print(f"{method:<12}{r['count']:>8}{r['err3d_median_rel']:>19.2e}{r['err3d_mean_rel']:>10.2e}"
+              f"{r['reproj_rms']:>15.3f}")
 
 
 def main(argv: list[str] | None = None) -> None:
