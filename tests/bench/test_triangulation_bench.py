@@ -1,0 +1,20 @@
+import json
+
+from bench import triangulation
+
+
+def test_benchmark_prints_one_json_object_with_every_method(tmp_path, capsys):
+    plot = tmp_path / "tri.png"
+    triangulation.main(["--points", "3000", "--repeats", "1", "--pycolmap-points", "200", "--json",
+                        "--plot", str(plot)])
+    report = json.loads(capsys.readouterr().out)
+    methods = report["methods"]
+    expected = {"dogleg", "midpoint3", "midpoint2", "polynomial", "kornia_dlt", "opencv_dlt", "opencv_optimal"}
+    assert expected <= set(methods)
+    for entry in methods.values():
+        assert {"views", "points_per_s", "err3d_median", "err3d_mean", "err3d_p95", "reproj_rms"} <= set(entry)
+    # Must show 4: three views beat two, and the optimal solver does not lose to its own start.
+    assert methods["dogleg"]["err3d_median"] < methods["polynomial"]["err3d_median"]
+    assert methods["dogleg"]["err3d_median"] < methods["midpoint2"]["err3d_median"]
+    assert methods["dogleg"]["reproj_rms"] <= methods["midpoint3"]["reproj_rms"]
+    assert plot.stat().st_size > 10_000
