@@ -165,26 +165,45 @@ def shift_fourier(xhat: Tensor, shift: Tensor, size: tuple[int, ...]) -> Tensor:
     return xhat * torch.polar(torch.ones_like(phase), phase)
 
 
-def _series(sr: Tensor, si: Tensor, theta: Tensor, ks: list[Tensor], w: Tensor, order: int):
+def _series(sr: Tensor, si: Tensor, theta: Tensor, ks: list[Tensor], w: Tensor, order: int, srsi=None):
     """Value, gradient and Hessian (if ``order`` 2) of ``sum_k w Re(s^[k] exp(i k . theta))``.
 
-    ``theta`` is ``(..., ndim)`` ordered like the signal axes (first axis first).
+    ``theta`` is ``(..., ndim)`` ordered like the signal axes (first axis first); ``w`` weighs the halved last
+    axis (1 at frequency 0, 2 elsewhere); ``srsi`` is ``cat([sr, si], -1)`` when already at hand (2D). 2D
+    series are evaluated separably: one batched real matrix product
+    sums the last axis for the three powers of ``kx``, then short dot products sum the first axis.
     """
-    ndim = len(ks)
-    view = (*theta.shape[:-1], *([1] * ndim))
-    angle = torch.zeros((), device=theta.device, dtype=theta.dtype)
-    for axis in range(ndim):
-        angle = angle + ks[axis] * theta[..., axis].reshape(view)
-    c, s = torch.cos(angle), torch.sin(angle)
-    pr = (sr * c - si * s) * w
-    pi = (sr * s + si * c) * w
-    dims = signal_dims(ndim)
-    value = pr.sum(dims)
+    if len(ks) == 1:
+        angle = ks[0] * theta
+        c, s = torch.cos(angle), torch.sin(angle)
+        pr, pi = (sr * c - si * s) * w, (sr * s + si * c) * w
+        k = ks[0]
+        value = pr.sum(-1)
+        if order == 0:
+            return value, None, None
+        return value, -(k * pi).sum(-1, keepdim=True), [[-(k * k * pr).sum(-1)]]
+    ky, kx, w = ks[0].squeeze(-1), ks[1].squeeze(0), w.reshape(-1)
+    ax = kx * theta[..., 1:2]
+    cx, sx = torch.cos(ax), torch.sin(ax)
+    powers = torch.stack([w, w * kx, w * kx * kx], -1) if order else w.unsqueeze(-1)
+    er, ei = cx.unsqueeze(-1) * powers, sx.unsqueeze(-1) * powers
+    basis = torch.cat([torch.cat([er, ei], -1), torch.cat([-ei, er], -1)], -2)
+    u = (torch.cat([sr, si], -1) if srsi is None else srsi) @ basis
+    m = powers.shape[-1]
+    ur, ui = u[..., :m], u[..., m:]
+    ay = ky * theta[..., 0:1]
+    cy, sy = torch.cos(ay).unsqueeze(-1), torch.sin(ay).unsqueeze(-1)
+    re = cy * ur - sy * ui  # Re(exp(i ky theta_y) u)
+    im = cy * ui + sy * ur
+    value = re[..., 0].sum(-1)
     if order == 0:
         return value, None, None
-    grad = torch.stack([-(ks[a] * pi).sum(dims) for a in range(ndim)], dim=-1)
-    hess = [[-(ks[a] * ks[b] * pr).sum(dims) for b in range(ndim)] for a in range(ndim)]
-    return value, grad, hess
+    kyc = ky.unsqueeze(-1)
+    grad = torch.stack([-(kyc * im[..., :1]).sum((-2, -1)), -im[..., 1].sum(-1)], -1)
+    hyy = -(kyc * kyc * re[..., :1]).sum((-2, -1))
+    hyx = -(kyc * re[..., 1:2]).sum((-2, -1))
+    hxx = -re[..., 2].sum(-1)
+    return value, grad, [[hyy, hyx], [hyx, hxx]]
 
 
 def fourier_series_peak(shat: Tensor, size: tuple[int, ...], iterations: int = 5) -> tuple[Tensor, Tensor]:
@@ -212,11 +231,12 @@ def fourier_series_peak(shat: Tensor, size: tuple[int, ...], iterations: int = 5
     ks = _frequency_grid(size, shat.device, real_dtype)
     w = torch.where(ks[-1] == 0, torch.ones_like(ks[-1]), 2 * torch.ones_like(ks[-1]))
     sr, si = shat.real, shat.imag
+    srsi = torch.cat([sr, si], -1) if ndim == 2 else None
     two_pi_over_n = torch.tensor([2 * math.pi / n for n in size], device=shat.device, dtype=real_dtype)
     theta0 = t0 * two_pi_over_n
     theta = theta0
     for _ in range(iterations):
-        _, g, h = _series(sr, si, theta, ks, w, order=2)
+        _, g, h = _series(sr, si, theta, ks, w, order=2, srsi=srsi)
         if ndim == 1:
             ok = h[0][0] < 0
             step = -g / torch.where(ok, h[0][0], -torch.ones_like(h[0][0])).unsqueeze(-1)
@@ -230,8 +250,8 @@ def fourier_series_peak(shat: Tensor, size: tuple[int, ...], iterations: int = 5
             step = torch.stack([step_y, step_x], dim=-1)
         step = torch.where(ok.unsqueeze(-1), step, torch.zeros_like(step))
         theta = theta + torch.maximum(torch.minimum(step, two_pi_over_n), -two_pi_over_n)
-    v_grid, _, _ = _series(sr, si, theta0, ks, w, order=0)
-    v_ref, _, _ = _series(sr, si, theta, ks, w, order=0)
+    v_grid, _, _ = _series(sr, si, theta0, ks, w, order=0, srsi=srsi)
+    v_ref, _, _ = _series(sr, si, theta, ks, w, order=0, srsi=srsi)
     t = theta / two_pi_over_n
     keep = (v_ref >= v_grid) & ((t - t0).abs() <= 1).all(dim=-1)
     t = torch.where(keep.unsqueeze(-1), t, t0)

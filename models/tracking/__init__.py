@@ -1,0 +1,20 @@
+"""Point tracking with discriminative correlation filters (thesis ch. 3.4)."""
+
+from models.tracking.good_features import GoodFeaturesToTrack, good_features_to_track
+from models.tracking.point_tracker import (
+    METHODS,
+    PointTracker,
+    TrackerState,
+    extract_patches,
+    image_pyramid,
+)
+
+__all__ = [
+    "METHODS",
+    "GoodFeaturesToTrack",
+    "PointTracker",
+    "TrackerState",
+    "extract_patches",
+    "good_features_to_track",
+    "image_pyramid",
+]

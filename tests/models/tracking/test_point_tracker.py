@@ -1,0 +1,113 @@
+"""DCF point tracker: patches, exact and sub-pixel translations through the pyramid, lost flags, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from data.errors import InputError
+from models.tracking import PointTracker, extract_patches, good_features_to_track
+
+
+def _smooth_image(h: int, w: int, seed: int) -> torch.Tensor:
+    """Periodic band-limited random image (float64, about 0..255), cheap to translate exactly by a
+    Fourier shift."""
+    gen = torch.Generator().manual_seed(seed)
+    ky = torch.fft.fftfreq(h, dtype=torch.float64).reshape(-1, 1)
+    kx = torch.fft.rfftfreq(w, dtype=torch.float64).reshape(1, -1)
+    radius = torch.sqrt(ky**2 + kx**2)
+    spec = torch.complex(torch.randn(h, w // 2 + 1, generator=gen), torch.randn(h, w // 2 + 1, generator=gen))
+    spec = spec.to(torch.complex128) * (radius < 0.2) / (radius + 0.02)
+    img = torch.fft.irfft2(spec, s=(h, w))
+    return 128 + 40 * img / img.std()
+
+
+def _translate(img: torch.Tensor, dx: float, dy: float) -> torch.Tensor:
+    """Content moved by (+dx, +dy): out(x) = img(x - d), exact for the band-limited periodic image."""
+    h, w = img.shape
+    ky = torch.fft.fftfreq(h, dtype=torch.float64).reshape(-1, 1)
+    kx = torch.fft.rfftfreq(w, dtype=torch.float64).reshape(1, -1)
+    phase = torch.exp(-2j * math.pi * (kx * dx + ky * dy))
+    return torch.fft.irfft2(torch.fft.rfft2(img) * phase, s=(h, w))
+
+
+def test_extract_patches_equals_direct_crop():
+    img = torch.arange(20 * 30, dtype=torch.float64).reshape(20, 30)
+    centres = torch.tensor([[10.0, 8.0], [15.0, 12.0]], dtype=torch.float64)
+    patches = extract_patches(img[None, None], centres, 5)
+    for patch, (x, y) in zip(patches, centres.long().tolist(), strict=True):
+        crop = img[y - 2 : y + 3, x - 2 : x + 3]
+        torch.testing.assert_close(patch, torch.roll(crop, (-2, -2), (0, 1)))  # FFT order: centre at index 0
+    half = extract_patches(img[None, None], torch.tensor([[10.5, 8.25]], dtype=torch.float64), 3)
+    assert half[0, 0, 0].item() == pytest.approx(
+        img[8, 10] * 0.375 + img[8, 11] * 0.375 + img[9, 10] * 0.125 + img[9, 11] * 0.125
+    )
+
+
+@pytest.mark.parametrize("method", ["ccot", "ccot_ff", "mosse"])
+def test_large_integer_translation_is_recovered(method):
+    img = _smooth_image(160, 192, 0)
+    moved = _translate(img, 23.0, -17.0)
+    points = torch.tensor([[60.0, 70.0], [100.0, 90.0], [130.0, 60.0], [80.0, 110.0]], dtype=torch.float64)
+    tracker = PointTracker(method).double()
+    tracks, lost, _ = tracker.track([img, moved], points)
+    assert not lost.any()
+    err = (tracks[1] - points - torch.tensor([23.0, -17.0], dtype=torch.float64)).abs().max().item()
+    assert err < 0.05, err
+
+
+def test_subpixel_translation_ccot():
+    img = _smooth_image(128, 128, 1)
+    d = torch.tensor([3.37, -1.71], dtype=torch.float64)
+    moved = _translate(img, *d.tolist())
+    points = torch.tensor([[40.0, 50.0], [64.0, 64.0], [90.0, 80.0]], dtype=torch.float64)
+    tracks, lost, psr = PointTracker("ccot").double().track([img, moved], points)
+    assert not lost.any() and (psr[1] > 10).all()
+    assert (tracks[1] - points - d).abs().max().item() < 0.1
+
+
+def test_lost_flags_for_flat_regions_and_leaving_points():
+    img = _smooth_image(128, 128, 2)
+    img[:, :48] = 100.0  # flat: no structure, so the PSR collapses
+    moved = _translate(img, 0.0, 0.0)
+    moved[:, :48] = 100.0
+    points = torch.tensor([[20.0, 60.0], [90.0, 60.0], [-5.0, 10.0]], dtype=torch.float64)
+    tracks, lost, _ = PointTracker("ccot").double().track([img, moved], points)
+    assert lost[0].tolist() == [False, False, True]  # outside the image from the start
+    assert lost[1].tolist() == [True, False, True]
+    torch.testing.assert_close(tracks[1, 0], points[0])  # lost points stay where they were last trusted
+    shifted = _translate(_smooth_image(128, 128, 3), 30.0, 0.0)
+    t2, l2, _ = (
+        PointTracker("ccot")
+        .double()
+        .track([_smooth_image(128, 128, 3), shifted], torch.tensor([[110.0, 64.0]]))
+    )
+    assert l2[1].item()  # moved past the right border
+
+
+def test_bad_input():
+    img = torch.rand(64, 64) * 255
+    with pytest.raises(InputError, match="size"):
+        PointTracker("mosse").track([img, torch.rand(64, 65)], torch.tensor([[30.0, 30.0]]))
+    with pytest.raises(InputError, match="empty"):
+        PointTracker("mosse").track([img, img], torch.zeros(0, 2))
+    with pytest.raises(InputError, match="unknown tracking method"):
+        PointTracker("klt")
+    with pytest.raises(InputError, match=r"\(P, 2\)"):
+        PointTracker("mosse").track([img], torch.zeros(4, 3))
+
+
+def test_good_features_find_rectangle_corners():
+    img = torch.zeros(80, 100)
+    img[20:50, 30:70] = 200.0
+    pts = good_features_to_track(img, 10, 0.05, 5)
+    corners = torch.tensor([[30.0, 20.0], [69.0, 20.0], [30.0, 49.0], [69.0, 49.0]])
+    dist = torch.cdist(corners, pts).min(1).values
+    assert (dist <= 2.0).all()
+    assert len(good_features_to_track(img, 2, 0.05, 5)) == 2
+    d = torch.cdist(pts, pts) + 1e3 * torch.eye(len(pts))
+    assert (d.min() > 5).item()
+    rng = np.random.default_rng(0)
+    many = good_features_to_track(torch.from_numpy(rng.uniform(0, 255, (64, 64))), 20, 0.01, 3)
+    assert len(many) == 20
