@@ -180,15 +180,18 @@ def plot(errors: dict[str, np.ndarray], path: str | Path, title: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for name, (err3d, reproj) in errors.items():
-        for ax, values in zip(axes, (err3d, reproj), strict=True):
-            values = values[values > 0]
-            bins = np.logspace(np.log10(values.min()), np.log10(values.max()), 60)
-            ax.hist(values, bins=bins, histtype="step", density=True, label=name, linewidth=1.3)
-    for ax, label in zip(axes, ("3D error (world units)", "RMS reprojection error per point (px)"), strict=True):
+    for column, (ax, label) in enumerate(
+        zip(axes, ("3D error (world units)", "RMS reprojection error per point (px)"), strict=True)
+    ):
+        values = {name: e[column][e[column] > 0] for name, e in errors.items()}
+        low = min(v.min() for v in values.values())
+        high = max(v.max() for v in values.values())
+        bins = np.logspace(np.log10(low), np.log10(high), 60)
+        for name, v in values.items():
+            ax.hist(v, bins=bins, weights=np.full(len(v), 1 / len(v)), histtype="step", label=name, linewidth=1.3)
         ax.set_xscale("log")
         ax.set_xlabel(label)
-        ax.set_ylabel("density")
+        ax.set_ylabel("fraction of points")
     axes[0].legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()
