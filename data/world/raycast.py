@@ -59,24 +59,6 @@ class HorizonProfiles:
     shore_distance: torch.Tensor
 
 
-def _sample_bilinear(z_padded: torch.Tensor, col: torch.Tensor, row: torch.Tensor) -> torch.Tensor:
-    """Bilinear heights of a zero-padded grid at continuous (col, row) of the unpadded grid (outside = 0)."""
-    rows, cols = z_padded.shape
-    col = (col + 1.0).clamp(0.0, cols - 1.0)
-    row = (row + 1.0).clamp(0.0, rows - 1.0)
-    c0 = col.floor().clamp(max=cols - 2)
-    r0 = row.floor().clamp(max=rows - 2)
-    fc = col - c0
-    fr = row - r0
-    index = r0.long() * cols + c0.long()
-    flat = z_padded.reshape(-1)
-    z00 = flat[index]
-    z01 = flat[index + 1]
-    z10 = flat[index + cols]
-    z11 = flat[index + cols + 1]
-    return (z00 * (1 - fc) + z01 * fc) * (1 - fr) + (z10 * (1 - fc) + z11 * fc) * fr
-
-
 def virtual_horizon(
     heights: torch.Tensor,
     x0: float,
@@ -131,10 +113,14 @@ def virtual_horizon(
     drop = distance**2 / (2.0 * r_eff)
     psi = 2.0 * math.pi * torch.arange(bins, dtype=dtype, device=device) / bins
     east, north = torch.sin(psi), torch.cos(psi)
-    z_padded = nn.functional.pad(heights[None, None], (1, 1, 1, 1))[0, 0]
-    land_padded = (z_padded > shore_height).to(dtype)
-    col0 = (positions[:, 0] - x0) / cell - 0.5  # (B,)
-    row0 = (y0 - positions[:, 1]) / cell - 0.5
+    rows, cols = heights.shape
+    # Heights and the land indicator as two channels, sampled together (zeros outside = sea).
+    fields = torch.stack([heights, (heights > shore_height).to(dtype)])[None]
+    # Ray samples in grid_sample's normalised coordinates (align_corners: -1 and 1 at the outer cell centres).
+    gx0 = ((positions[:, 0] - x0) / cell - 0.5) * (2.0 / (cols - 1)) - 1.0  # (B,)
+    gy0 = ((y0 - positions[:, 1]) / cell - 0.5) * (2.0 / (rows - 1)) - 1.0
+    gx_step = east * (2.0 / ((cols - 1) * cell))  # (bins,) per metre
+    gy_step = -north * (2.0 / ((rows - 1) * cell))
     sea_tan = -torch.sqrt(2.0 * h_c / r_eff)  # (B, 1)
     sea_distance = torch.sqrt(2.0 * r_eff * h_c)
 
@@ -144,14 +130,15 @@ def virtual_horizon(
     horizon, horizon_d, shore_d = [], [], []
     for start in range(0, rays.shape[0], rays_per_chunk):
         b, j = rays[start : start + rays_per_chunk].unbind(-1)
-        col = col0[b, None] + distance[None] * (east[j, None] / cell)
-        row = row0[b, None] - distance[None] * (north[j, None] / cell)
-        z = _sample_bilinear(z_padded, col, row)  # (R, S)
+        grid = torch.stack([gx0[b, None] + distance[None] * gx_step[j, None],
+                            gy0[b, None] + distance[None] * gy_step[j, None]], -1)
+        sampled = nn.functional.grid_sample(fields, grid[None], mode="bilinear", padding_mode="zeros",
+                                            align_corners=True)[0]
+        z, land = sampled[0], sampled[1]  # (R, S)
         tangent = (z - h_c[b] - drop) / distance
         best, index = tangent.max(dim=-1)
         horizon.append(best)
         horizon_d.append(distance[index])
-        land = _sample_bilinear(land_padded, col, row)
         above = land > 0.5
         has_land = above.any(dim=-1)
         first = above.to(torch.uint8).argmax(dim=-1)

@@ -23,6 +23,7 @@ from data.errors import InputError
 from data.world.raycast import VirtualHorizon, effective_radius
 from models.horizon.cylinder import (
     column_azimuths,
+    interp_profile,
     panorama_focal,
     row_tangents,
     tangent_to_row,
@@ -101,16 +102,6 @@ class PanoramaTruth:
     water_rows: torch.Tensor
 
 
-def _interp_circular(profile: torch.Tensor, psi: torch.Tensor) -> torch.Tensor:
-    """Linear interpolation of (B, N) profiles sampled at 2 pi j / N at azimuths psi (B, ...) rad."""
-    batch, bins = profile.shape
-    x = torch.remainder(psi, 2.0 * math.pi).reshape(batch, -1) * (bins / (2.0 * math.pi))
-    j0 = x.floor().long().clamp(0, bins - 1)
-    frac = x - j0.to(x.dtype)
-    out = profile.gather(1, j0) * (1 - frac) + profile.gather(1, (j0 + 1) % bins) * frac
-    return out.reshape(psi.shape)
-
-
 def _noise(shape: tuple[int, ...], beta: float, anisotropy: float, generator, dtype, device) -> torch.Tensor:
     """Unit-variance fractal noise (B, H, W), periodic; anisotropy > 1 stretches features horizontally."""
     white = torch.randn(shape, generator=generator, dtype=torch.float64).to(device)
@@ -126,7 +117,7 @@ def _color(rgb: tuple[float, float, float], like: torch.Tensor) -> torch.Tensor:
     return torch.tensor(rgb, dtype=like.dtype, device=like.device).view(1, 3, 1, 1)
 
 
-def _boundary_rows(profile, psi_cam, heading, pitch, roll, height, width, iterations=40) -> torch.Tensor:
+def _boundary_rows(profile, psi_cam, heading, pitch, roll, height, width, iterations=26) -> torch.Tensor:
     """Rows where each tilted column crosses a level profile (B, N): bisection on tan elevation, (B, W)."""
     batch = profile.shape[0]
     top = row_tangents(height, width, profile.dtype, profile.device)[0]
@@ -136,7 +127,7 @@ def _boundary_rows(profile, psi_cam, heading, pitch, roll, height, width, iterat
     for _ in range(iterations):
         mid = (lo + hi) / 2
         psi_l, t_l = tilted_to_level(psi, mid, pitch, roll)
-        above = t_l > _interp_circular(profile, psi_l + heading[:, None])
+        above = t_l > interp_profile(profile, psi_l + heading[:, None])
         hi = torch.where(above, mid, hi)
         lo = torch.where(above, lo, mid)
     return tangent_to_row((lo + hi) / 2, height, width)
@@ -183,9 +174,9 @@ def render_panorama(
         pitch, roll,
     )
     world_psi = psi_l + heading[:, None, None]
-    horizon = _interp_circular(profiles.horizon, world_psi)
-    water = _interp_circular(profiles.water, world_psi)
-    land_distance = _interp_circular(profiles.horizon_distance, world_psi)
+    horizon = interp_profile(profiles.horizon, world_psi)
+    water = interp_profile(profiles.water, world_psi)
+    land_distance = interp_profile(profiles.horizon_distance, world_psi)
     coverage_sky = ((t_l - horizon) * f + 0.5).clamp(0, 1)[:, None]
     coverage_sea = ((water - t_l) * f + 0.5).clamp(0, 1)[:, None]
     coverage_land = (1 - coverage_sky - coverage_sea).clamp(min=0)
@@ -261,8 +252,8 @@ def render_panorama(
     image = (image + per_image(appearance.noise) * pixel_noise).clamp(0, 1)
 
     level_psi = psi_cam[None] + heading[:, None]
-    level_h = _interp_circular(profiles.horizon, level_psi)
-    level_w = _interp_circular(profiles.water, level_psi)
+    level_h = interp_profile(profiles.horizon, level_psi)
+    level_w = interp_profile(profiles.water, level_psi)
     truth = PanoramaTruth(
         pitch=pitch, roll=roll, heading=heading, horizon=level_h, water=level_w,
         level_horizon_rows=tangent_to_row(level_h, height, width),

@@ -86,6 +86,16 @@ def row_to_tangent(row: torch.Tensor, height: int, width: int) -> torch.Tensor:
     return ((height - 1) / 2.0 - row) / panorama_focal(width)
 
 
+def interp_profile(profile: torch.Tensor, psi: torch.Tensor) -> torch.Tensor:
+    """Circular linear interpolation of profiles (B, N), bin j at azimuth 2 pi j / N, at azimuths (B, ...) rad."""
+    batch, bins = profile.shape
+    x = torch.remainder(psi, 2.0 * math.pi).reshape(batch, -1) * (bins / (2.0 * math.pi))
+    j0 = x.floor().long().clamp(0, bins - 1)
+    frac = x - j0.to(x.dtype)
+    out = profile.gather(1, j0) * (1 - frac) + profile.gather(1, (j0 + 1) % bins) * frac
+    return out.reshape(psi.shape)
+
+
 def warp_panorama(image: torch.Tensor, pitch: torch.Tensor, roll: torch.Tensor, to_level: bool = True) -> torch.Tensor:
     """Resample a panorama between the tilted camera and the level frame (bilinear, wrapping around in azimuth).
 
