@@ -30,6 +30,22 @@ from models.vos.target_model import apply_filter, hinge_pixel_weights, project, 
 COMPONENTS = ("backbone", "target_model", "decoder", "update", "init")
 
 
+def frame_memory_insert(
+    memory: Memory,
+    z: torch.Tensor,
+    labels: torch.Tensor,
+    lr: float = 0.1,
+    pixel_weighting: bool = True,
+    fg_target: float = 0.1,
+    min_pixels: int = 10,
+) -> Memory:
+    """Insert one frame per object: projected features z (B, C, h, w) and soft labels (B, H', W'); an object
+    whose label has fewer than ``min_pixels`` pixels above 0.5 is skipped. Pixel weights follow the hinge rule."""
+    valid = (labels > 0.5).flatten(1).sum(1) >= min_pixels
+    v = hinge_pixel_weights(labels[:, None], fg_target, min_pixels)[:, 0] if pixel_weighting else labels * 0 + 1
+    return memory_insert(memory, z, labels, v, valid, lr)
+
+
 class FRTMTracker(nn.Module):
     """Video object segmentation with fast and robust target models.
 
@@ -128,8 +144,49 @@ class FRTMTracker(nn.Module):
             return torch.ones_like(labels)
         return hinge_pixel_weights(labels, self.fg_target, self.min_update_pixels)
 
-    def _optimize_filters(self) -> None:
-        n = int((self.memory.weights > 0).sum(1).max())  # only filled slots take part
+    # The five hooks below are the computational parts; export/vos_onnx.py overrides them with onnxruntime.
+
+    def target_features(self, images: torch.Tensor) -> torch.Tensor:
+        """Target-model features (M, D, h, w) of images (M, 3, H, W)."""
+        return torch.cat([self.backbone(x[None])[self.feature_layer] for x in images])
+
+    def fit_target_models(
+        self, x: torch.Tensor, y: torch.Tensor, v: torch.Tensor, gamma: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Joint W_p/W_f fit on the augmented samples: x (B, K, D, h, w), y, v (B, K, H', W'), gamma (B, K)."""
+        b, d = x.shape[0], x.shape[2]
+        wp, wf = target_model_init(b, d, self.channels, self.kernel_size, self.seed, x.dtype, x.device)
+        wp, wf, _, _ = self.init_optimizer(x, y, v if self.pixel_weighting else None, gamma, wf, wp)
+        return wp, wf
+
+    def segment_frame(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per-object logits (N, H, W) and projected features (N, C, h, w) of one frame (3, H, W)."""
+        device = image.device
+        start = self._tic(device)
+        feats = self.backbone(image[None])
+        self._toc("backbone", start, device)
+        start = self._tic(device)
+        z = project(feats[self.feature_layer][:, None], self.wp)[:, 0]  # (N, C, h, w)
+        score = apply_filter(z[:, None], self.wf)[:, 0]  # (N, h, w)
+        self._toc("target_model", start, device)
+        start = self._tic(device)
+        size = (image.shape[-2], image.shape[-1])
+        if self.use_decoder:
+            logits = self.decoder(score[:, None], feats, size)[:, 0]
+        else:
+            up = F.interpolate(score[:, None], size=size, mode="bilinear", align_corners=False)[:, 0]
+            logits = (up - 0.5) * 10  # score 0.5 <-> probability 0.5
+        self._toc("decoder", start, device)
+        return logits, z
+
+    def insert_samples(self, z: torch.Tensor, y: torch.Tensor) -> None:
+        """Insert projected features (N, C, h, w) and soft labels (N, H', W') into the memory."""
+        self.memory = frame_memory_insert(self.memory, z, y, self.learning_rate, self.pixel_weighting,
+                                          self.fg_target, self.min_update_pixels)
+
+    def optimize_filters(self) -> None:
+        """Re-optimise W_f on the filled memory slots."""
+        n = int((self.memory.weights > 0).sum(1).max())
         mem = self.memory
         _, self.wf, self.cg_state, _ = self.update_optimizer(
             mem.features[:, :n], mem.labels[:, :n], mem.pixel_weights[:, :n], mem.weights[:, :n], self.wf,
@@ -155,15 +212,14 @@ class FRTMTracker(nn.Module):
             images.append(im)
             masks.append(m)
         b, k = len(ids), self.num_aug
-        feats = torch.cat([self.backbone(x[None])[self.feature_layer] for x in torch.cat(images)])
+        feats = self.target_features(torch.cat(images))
         x = feats.view(b, k, *feats.shape[1:])
         y = self._to_label_res(torch.cat(masks)).view(b, k, *self._label_size(image.shape[-2:]))
         v = self._pixel_weights(y)
         gamma = x.new_ones(b, k)
         gamma[:, 0] = 2
         gamma = gamma / gamma.sum(1, keepdim=True)
-        wp, wf = target_model_init(b, x.shape[2], self.channels, self.kernel_size, self.seed, x.dtype, x.device)
-        wp, wf, _, _ = self.init_optimizer(x, y, None if not self.pixel_weighting else v, gamma, wf, wp)
+        wp, wf = self.fit_target_models(x, y, v, gamma)
         memory = memory_init(project(x, wp), y, v, self.memory_size)
         if self.ids:
             mem = self.memory
@@ -171,39 +227,22 @@ class FRTMTracker(nn.Module):
             wp, wf = torch.cat([self.wp, wp]), torch.cat([self.wf, wf])
         self.ids += list(ids)
         self.wp, self.wf, self.memory, self.cg_state = wp, wf, memory, None
-        self._optimize_filters()
+        self.optimize_filters()
         self._toc("init", start, device)
 
     def step(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Segment one frame and update the memory.
+        """Segment one frame.
 
         Args:
             image: (3, H, W) RGB in [0, 1].
 
         Returns:
             labels (H, W) int64, per-object merged soft masks (N, H, W) for the memory, projected features
-            (N, 1, C, h, w).
+            (N, C, h, w).
         """
         if not self.ids:
             raise InputError("no object is tracked: give a first-frame mask")
-        device = image.device
-        start = self._tic(device)
-        feats = self.backbone(image[None])
-        self._toc("backbone", start, device)
-        start = self._tic(device)
-        n = len(self.ids)
-        x = feats[self.feature_layer][:, None].expand(n, -1, -1, -1, -1)
-        z = project(x, self.wp)
-        score = apply_filter(z, self.wf)  # (N, 1, h, w)
-        self._toc("target_model", start, device)
-        start = self._tic(device)
-        size = tuple(image.shape[-2:])
-        if self.use_decoder:
-            logits = self.decoder(score, feats, size)[:, 0]
-        else:
-            up = F.interpolate(score, size=size, mode="bilinear", align_corners=False)[:, 0]
-            logits = (up - 0.5) * 10  # score 0.5 <-> probability 0.5
-        self._toc("decoder", start, device)
+        logits, z = self.segment_frame(image)
         labels, soft = merge_objects(logits, torch.tensor(self.ids))
         return labels, soft, z
 
@@ -211,12 +250,9 @@ class FRTMTracker(nn.Module):
         """Insert merged soft masks (N, H, W) and projected features into memory; optimise every k frames."""
         device = soft.device
         start = self._tic(device)
-        y = self._to_label_res(soft)
-        valid = (y > 0.5).flatten(1).sum(1) >= self.min_update_pixels
-        self.memory = memory_insert(self.memory, z[:, 0], y, self._pixel_weights(y[:, None])[:, 0], valid,
-                                    self.learning_rate)
+        self.insert_samples(z, self._to_label_res(soft))
         if self.frame % self.update_every == 0:
-            self._optimize_filters()
+            self.optimize_filters()
         self._toc("update", start, device)
 
     @torch.inference_mode()

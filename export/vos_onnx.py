@@ -1,0 +1,240 @@
+"""ONNX export of FRTM and an onnxruntime tracker (REFERENCE.md 1.2, 8: per-component graphs with the state
+outside the graph).
+
+Graphs (dynamo exporter, opset 20; H, W, the number of objects N, samples K and memory slots M dynamic):
+
+- ``frtm_frame.onnx``: image (1, 3, H, W), W_p (N, C, D), W_f (N, C, k, k) -> logits (N, H, W), projected
+  features z (N, C, h, w): backbone + target-model application + decoder for every object of a frame.
+- ``frtm_features.onnx``: images (K, 3, H, W) -> target-model features (K, D, h, w) (first-frame samples).
+- ``frtm_init.onnx``: the joint W_p/W_f Gauss-Newton fit of one object on its K augmented samples.
+- ``frtm_insert.onnx``: one memory insertion (memory tensors in and out, hinge weights and the size test inside).
+- ``frtm_update.onnx``: one W_f optimizer update over M memory slots with the CG state in and out.
+
+The per-object graphs (init, insert, update) take one object (B = 1, grouped convolutions need a static group
+count); ``OnnxFRTMTracker`` loops over objects. ``frtm_onnx.json`` stores the host-side tracker settings.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from pathlib import Path
+
+import torch
+from torch import nn
+from torch.export import Dim
+
+from data.errors import InputError
+from export.onnx import export_onnx, onnx_session, run_onnx
+from models.vos.memory import Memory
+from models.vos.optimizer import SteepestDescent
+from models.vos.target_model import target_model_init
+from models.vos.tracker import FRTMTracker, frame_memory_insert
+
+GRAPHS = ("frame", "features", "init", "insert", "update")
+
+
+def apply_filter_per_object(z: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
+    """W_f,i * z_i for N objects without grouped convolutions (k^2 shifted einsums): (N, C, h, w),
+    (N, C, k, k) -> (N, h, w). Equals ``apply_filter(z[:, None], wf)[:, 0]``; exports with dynamic N."""
+    n, c, h, w = z.shape
+    k = wf.shape[-1]
+    zp = torch.nn.functional.pad(z, (k // 2, k // 2, k // 2, k // 2))
+    out = z.new_zeros(n, h, w)
+    for dy in range(k):
+        for dx in range(k):
+            out = out + torch.einsum("nchw,nc->nhw", zp[:, :, dy : dy + h, dx : dx + w], wf[:, :, dy, dx])
+    return out
+
+
+class FrameGraph(nn.Module):
+    """Backbone + target models + decoder of one frame (``FRTMTracker.segment_frame``)."""
+
+    def __init__(self, tracker: FRTMTracker) -> None:
+        super().__init__()
+        self.backbone = tracker.backbone
+        self.decoder = tracker.decoder if tracker.use_decoder else None
+        self.feature_layer = tracker.feature_layer
+
+    def forward(self, image: torch.Tensor, wp: torch.Tensor, wf: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        feats = self.backbone(image)
+        n = wp.shape[0]
+        z = torch.einsum("ncd,dhw->nchw", wp, feats[self.feature_layer][0])
+        score = apply_filter_per_object(z, wf)[:, None]
+        size = (image.shape[-2], image.shape[-1])
+        if self.decoder is None:
+            up = torch.nn.functional.interpolate(score, size=size, mode="bilinear", align_corners=False)
+            return (up[:, 0] - 0.5) * 10, z
+        shared = {k: v.expand(n, -1, -1, -1) for k, v in feats.items()}
+        return self.decoder(score, shared, size)[:, 0], z
+
+
+class FeaturesGraph(nn.Module):
+    def __init__(self, tracker: FRTMTracker) -> None:
+        super().__init__()
+        self.backbone = tracker.backbone
+        self.feature_layer = tracker.feature_layer
+
+    def forward(self, images: torch.Tensor) -> torch.Tensor:
+        return self.backbone(images)[self.feature_layer]
+
+
+class InitGraph(nn.Module):
+    def __init__(self, tracker: FRTMTracker) -> None:
+        super().__init__()
+        self.optimizer = tracker.init_optimizer
+        self.pixel_weighting = tracker.pixel_weighting
+
+    def forward(self, x, labels, pixel_weights, gamma, wp, wf):
+        wp, wf, _, _ = self.optimizer(x, labels, pixel_weights if self.pixel_weighting else None, gamma, wf, wp)
+        return wp, wf
+
+
+class InsertGraph(nn.Module):
+    def __init__(self, tracker: FRTMTracker) -> None:
+        super().__init__()
+        self.t = {"lr": tracker.learning_rate, "pixel_weighting": tracker.pixel_weighting,
+                  "fg_target": tracker.fg_target, "min_pixels": tracker.min_update_pixels}
+
+    def forward(self, features, labels, pixel_weights, weights, newest, z, label):
+        mem = frame_memory_insert(Memory(features, labels, pixel_weights, weights, newest), z, label, **self.t)
+        return tuple(mem)
+
+
+class UpdateGraph(nn.Module):
+    def __init__(self, tracker: FRTMTracker) -> None:
+        super().__init__()
+        self.optimizer = tracker.update_optimizer
+
+    def forward(self, features, labels, pixel_weights, weights, wf, p, rho, r_prev):
+        if isinstance(self.optimizer, SteepestDescent):
+            _, wf, _, _ = self.optimizer(features, labels, pixel_weights, weights, wf)
+            return wf, p, rho, r_prev
+        _, wf, (p, rho, r_prev), _ = self.optimizer(features, labels, pixel_weights, weights, wf,
+                                                    state=([p], rho, [r_prev]))
+        return wf, p[0], rho, r_prev[0]
+
+
+def _settings(tracker: FRTMTracker) -> dict:
+    return {
+        "feature_layer": tracker.feature_layer, "channels": tracker.channels, "kernel_size": tracker.kernel_size,
+        "num_aug": tracker.num_aug, "memory_size": tracker.memory_size, "learning_rate": tracker.learning_rate,
+        "update_every": tracker.update_every, "pixel_weighting": tracker.pixel_weighting,
+        "fg_target": tracker.fg_target, "min_update_pixels": tracker.min_update_pixels,
+        "label_stride": tracker.label_stride, "use_decoder": tracker.use_decoder, "seed": tracker.seed,
+        "in_channels": tracker.backbone.channels[tracker.feature_layer],
+    }
+
+
+@torch.no_grad()
+def export_frtm(tracker: FRTMTracker, out_dir: str | Path, height: int = 96, width: int = 160) -> dict[str, Path]:
+    """Export the five FRTM graphs of ``tracker`` into ``out_dir`` (example size ``height`` x ``width``)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    tracker = tracker.eval()
+    c, k, d = tracker.channels, tracker.kernel_size, tracker.backbone.channels[tracker.feature_layer]
+    stride = tracker.backbone.strides[tracker.feature_layer]
+    h, w = -(-height // stride), -(-width // stride)
+    lh, lw = tracker._label_size((height, width))
+    n_obj, n_aug, n_mem = 2, max(tracker.num_aug, 2), 3
+    big_h, big_w = Dim("H", min=2 * stride, max=4096), Dim("W", min=2 * stride, max=4096)
+    fh, fw, lbh, lbw = Dim("h", min=2), Dim("w", min=2), Dim("Hl", min=2), Dim("Wl", min=2)
+    nd, kd, md = Dim("N", min=1, max=64), Dim("K", min=2, max=256), Dim("M", min=2, max=4096)
+    g = torch.Generator().manual_seed(0)
+
+    def rnd(*shape: int) -> torch.Tensor:
+        return torch.rand(*shape, generator=g)
+
+    paths = {}
+    paths["frame"] = export_onnx(
+        FrameGraph(tracker), (rnd(1, 3, height, width), rnd(n_obj, c, d), rnd(n_obj, c, k, k)),
+        out / "frtm_frame.onnx", ["image", "wp", "wf"], ["logits", "z"],
+        dynamic_shapes=({2: big_h, 3: big_w}, {0: nd}, {0: nd}))
+    paths["features"] = export_onnx(
+        FeaturesGraph(tracker), (rnd(n_aug, 3, height, width),), out / "frtm_features.onnx", ["images"],
+        ["features"], dynamic_shapes=({0: kd, 2: big_h, 3: big_w},))
+    paths["init"] = export_onnx(
+        InitGraph(tracker),
+        (rnd(1, n_aug, d, h, w), rnd(1, n_aug, lh, lw), rnd(1, n_aug, lh, lw) + 0.5, rnd(1, n_aug),
+         rnd(1, c, d), rnd(1, c, k, k)),
+        out / "frtm_init.onnx", ["x", "labels", "pixel_weights", "gamma", "wp0", "wf0"], ["wp", "wf"],
+        dynamic_shapes=({1: kd, 3: fh, 4: fw}, {1: kd, 2: lbh, 3: lbw}, {1: kd, 2: lbh, 3: lbw}, {1: kd}, None,
+                        None))
+    mem = (rnd(1, n_mem, c, h, w), rnd(1, n_mem, lh, lw), rnd(1, n_mem, lh, lw), rnd(1, n_mem),
+           torch.tensor([1]))
+    paths["insert"] = export_onnx(
+        InsertGraph(tracker), (*mem, rnd(1, c, h, w), rnd(1, lh, lw)), out / "frtm_insert.onnx",
+        ["features", "labels", "pixel_weights", "weights", "newest", "z", "label"],
+        ["features_out", "labels_out", "pixel_weights_out", "weights_out", "newest_out"],
+        dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md}, None,
+                        {2: fh, 3: fw}, {1: lbh, 2: lbw}))
+    paths["update"] = export_onnx(
+        UpdateGraph(tracker), (*mem[:4], rnd(1, c, k, k), rnd(1, c, k, k), torch.ones(1), rnd(1, c, k, k)),
+        out / "frtm_update.onnx",
+        ["features", "labels", "pixel_weights", "weights", "wf", "p", "rho", "r_prev"],
+        ["wf_out", "p_out", "rho_out", "r_prev_out"],
+        dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md}, None,
+                        None, None, None))
+    (out / "frtm_onnx.json").write_text(json.dumps(_settings(tracker), indent=2))
+    return paths
+
+
+class OnnxFRTMTracker(FRTMTracker):
+    """``FRTMTracker`` whose computational hooks run the exported graphs in onnxruntime (CPU).
+
+    Host-side work stays in PyTorch/OpenCV: first-frame augmentation, memory initialisation, merging.
+    """
+
+    def __init__(self, onnx_dir: str | Path, threads: int | None = None) -> None:
+        d = Path(onnx_dir)
+        cfg_path = d / "frtm_onnx.json"
+        missing = [f"frtm_{g}.onnx" for g in GRAPHS if not (d / f"frtm_{g}.onnx").is_file()]
+        if not cfg_path.is_file() or missing:
+            raise InputError(f"{d} is not an FRTM ONNX export (missing {missing or ['frtm_onnx.json']})")
+        cfg = json.loads(cfg_path.read_text())
+        in_channels = cfg.pop("in_channels")
+        nn.Module.__init__(self)
+        for key, value in cfg.items():
+            setattr(self, key, value)
+        self.in_channels = in_channels
+        self.sessions = {g: onnx_session(d / f"frtm_{g}.onnx", threads) for g in GRAPHS}
+        self.timings = defaultdict(float)
+        self.reset()
+
+    def target_features(self, images: torch.Tensor) -> torch.Tensor:
+        return torch.from_numpy(run_onnx(self.sessions["features"], images.float())[0])
+
+    def fit_target_models(self, x, y, v, gamma):
+        wp0, wf0 = target_model_init(1, x.shape[2], self.channels, self.kernel_size, self.seed)
+        out = [run_onnx(self.sessions["init"], x[i : i + 1], y[i : i + 1], v[i : i + 1], gamma[i : i + 1], wp0, wf0)
+               for i in range(x.shape[0])]
+        return (torch.cat([torch.from_numpy(o[0]) for o in out]), torch.cat([torch.from_numpy(o[1]) for o in out]))
+
+    def segment_frame(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        start = self._tic(image.device)
+        logits, z = run_onnx(self.sessions["frame"], image[None].float(), self.wp, self.wf)
+        self._toc("frame", start, image.device)
+        return torch.from_numpy(logits), torch.from_numpy(z)
+
+    def insert_samples(self, z: torch.Tensor, y: torch.Tensor) -> None:
+        mem = self.memory
+        rows = []
+        for i in range(z.shape[0]):
+            out = run_onnx(self.sessions["insert"], *(t[i : i + 1] for t in mem), z[i : i + 1], y[i : i + 1])
+            rows.append([torch.from_numpy(o) for o in out])
+        self.memory = Memory(*(torch.cat(col) for col in zip(*rows, strict=True)))
+
+    def optimize_filters(self) -> None:
+        mem = self.memory
+        n = max(2, int((mem.weights > 0).sum(1).max()))
+        if self.cg_state is None:
+            self.cg_state = (torch.zeros_like(self.wf), torch.ones(self.wf.shape[0]), torch.zeros_like(self.wf))
+        p, rho, r_prev = self.cg_state
+        rows = []
+        for i in range(self.wf.shape[0]):
+            args = [t[i : i + 1, :n] for t in mem[:4]] + [self.wf[i : i + 1], p[i : i + 1], rho[i : i + 1],
+                                                         r_prev[i : i + 1]]
+            rows.append([torch.from_numpy(o) for o in run_onnx(self.sessions["update"], *args)])
+        wf, p, rho, r_prev = (torch.cat(col) for col in zip(*rows, strict=True))
+        self.wf, self.cg_state = wf, (p, rho, r_prev)
+
