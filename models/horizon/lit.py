@@ -1,0 +1,251 @@
+"""Lightning systems training HorizonFinder and HorizonSegmenter on classical labels (ch. 4.3).
+
+Training targets are the classical pipeline's labels (``data.horizon.datamodule``); ``test`` compares the
+network and the classical pipeline with the renderer's ground truth on the same held-out frames and logs
+mean and median errors and failure rates, overall and for the clean and degraded frames.
+
+A frame fails when its pitch or roll error exceeds ``FAIL_TILT_DEG`` (finder), or its median horizon error
+exceeds ``fail_mrad`` (segmenter); a frame the classical pipeline rejected counts as a classical failure.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import torch
+import torch.nn.functional as F
+from lightning.pytorch import Callback, LightningModule, Trainer
+
+from models.horizon.finder import HorizonFinder, sincos_to_angles
+from models.horizon.segmenter import HorizonSegmenter
+
+FAIL_TILT_DEG = 0.5
+
+
+def _summaries(errors: dict[str, torch.Tensor], failures: dict[str, torch.Tensor], degraded: torch.Tensor,
+               prefix: str) -> dict[str, float]:
+    """Mean/median errors and failure rates overall and per clean/degraded subset."""
+    out: dict[str, float] = {}
+    for subset, mask in (("all", torch.ones_like(degraded)), ("clean", ~degraded), ("degraded", degraded)):
+        if not mask.any():
+            continue
+        for name, values in errors.items():
+            out[f"{prefix}/{subset}/{name}_mae"] = values[mask].mean().item()
+            out[f"{prefix}/{subset}/{name}_median"] = values[mask].median().item()
+        for name, values in failures.items():
+            out[f"{prefix}/{subset}/{name}"] = values[mask].float().mean().item()
+    return out
+
+
+class _HorizonSystem(LightningModule):
+    """Shared optimiser and test bookkeeping."""
+
+    def __init__(self, lr: float, weight_decay: float) -> None:
+        super().__init__()
+        self.lr, self.weight_decay = lr, weight_decay
+        self._test_outputs: list[dict[str, torch.Tensor]] = []
+
+    def configure_optimizers(self):
+        optimizer = torch.optim.AdamW(self.parameters(), lr=self.lr, weight_decay=self.weight_decay)
+        scheduler = torch.optim.lr_scheduler.OneCycleLR(
+            optimizer, max_lr=self.lr, total_steps=max(int(self.trainer.estimated_stepping_batches), 1),
+            pct_start=0.15,
+        )
+        return {"optimizer": optimizer, "lr_scheduler": {"scheduler": scheduler, "interval": "step"}}
+
+    def on_test_epoch_start(self) -> None:
+        self._test_outputs = []
+
+    def _collect(self) -> dict[str, torch.Tensor]:
+        return {k: torch.cat([o[k] for o in self._test_outputs]) for k in self._test_outputs[0]}
+
+
+class HorizonFinderSystem(_HorizonSystem):
+    """Trains ``HorizonFinder`` (arguments as there) with an L1 loss on the (sin, cos) pairs.
+
+    Args:
+        lr: peak learning rate (one-cycle schedule), weight_decay: AdamW weight decay.
+    """
+
+    def __init__(
+        self,
+        backbone: str = "resnet50",
+        weights: str | None = None,
+        stage: str = "layer4",
+        frozen: bool = False,
+        heads: int = 4,
+        head_channels: int = 32,
+        channels: int = 64,
+        lr: float = 1e-3,
+        weight_decay: float = 1e-4,
+    ) -> None:
+        super().__init__(lr, weight_decay)
+        self.save_hyperparameters()
+        self.net = HorizonFinder(backbone, weights, stage, frozen, heads, head_channels, channels)
+
+    def forward(self, image: torch.Tensor) -> torch.Tensor:
+        """(B, 3, H, W) tilted panorama -> (B, 4) (sin, cos) of pitch and roll."""
+        return self.net(image)
+
+    @staticmethod
+    def _target(pitch: torch.Tensor, roll: torch.Tensor) -> torch.Tensor:
+        return torch.stack([torch.sin(pitch), torch.cos(pitch), torch.sin(roll), torch.cos(roll)], -1)
+
+    def _step(self, batch: dict[str, torch.Tensor], stage: str) -> torch.Tensor:
+        out = self(batch["image"])
+        loss = F.l1_loss(out, self._target(batch["pitch"], batch["roll"])) * (180 / math.pi)
+        pitch, roll = sincos_to_angles(out)
+        size = len(out)
+        self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=size)
+        self.log(f"{stage}/pitch_mae_deg", torch.rad2deg((pitch - batch["pitch"]).abs()).mean(), batch_size=size)
+        self.log(f"{stage}/roll_mae_deg", torch.rad2deg((roll - batch["roll"]).abs()).mean(), batch_size=size)
+        return loss
+
+    def training_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> torch.Tensor:
+        return self._step(batch, "train")
+
+    def validation_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> None:
+        self._step(batch, "val")
+
+    def test_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> None:
+        pitch, roll = sincos_to_angles(self(batch["image"]))
+        self._test_outputs.append({
+            "pitch": torch.rad2deg((pitch - batch["true_pitch"]).abs()),
+            "roll": torch.rad2deg((roll - batch["true_roll"]).abs()),
+            "classical_pitch": torch.rad2deg((batch["classical_pitch"] - batch["true_pitch"]).abs()),
+            "classical_roll": torch.rad2deg((batch["classical_roll"] - batch["true_roll"]).abs()),
+            "classical_ok": batch["classical_ok"], "degraded": batch["degraded"],
+        })
+
+    def on_test_epoch_end(self) -> None:
+        r = self._collect()
+        errors = {"pitch_deg": r["pitch"], "roll_deg": r["roll"], "classical_pitch_deg": r["classical_pitch"],
+                  "classical_roll_deg": r["classical_roll"]}
+        failures = {
+            "failure_rate": torch.maximum(r["pitch"], r["roll"]) > FAIL_TILT_DEG,
+            "classical_failure_rate": ~r["classical_ok"]
+            | (torch.maximum(r["classical_pitch"], r["classical_roll"]) > FAIL_TILT_DEG),
+        }
+        self.log_dict(_summaries(errors, failures, r["degraded"], "test"))
+
+
+class HorizonSegmenterSystem(_HorizonSystem):
+    """Trains ``HorizonSegmenter`` (arguments as there) with a smooth L1 loss on the profiles in mrad.
+
+    Args:
+        lr: peak learning rate (one-cycle schedule), weight_decay: AdamW weight decay.
+        fail_mrad: a frame whose median horizon error exceeds this fails (6.1 mrad = 2 px at 2048 px).
+    """
+
+    def __init__(
+        self,
+        backbone: str = "resnet50",
+        weights: str | None = None,
+        stage: str = "layer4",
+        frozen: bool = False,
+        heads: int = 4,
+        head_channels: int = 32,
+        channels: int = 64,
+        lr: float = 1e-3,
+        weight_decay: float = 1e-4,
+        fail_mrad: float = 2 * 2 * math.pi / 2048 * 1e3,
+    ) -> None:
+        super().__init__(lr, weight_decay)
+        self.save_hyperparameters()
+        self.fail_mrad = fail_mrad
+        self.net = HorizonSegmenter(backbone, weights, stage, frozen, heads, head_channels, channels)
+
+    def forward(self, image: torch.Tensor) -> torch.Tensor:
+        """(B, 3, H, W) levelled panorama -> (B, 2, W) tan elevation of the horizon and water line."""
+        return self.net(image)
+
+    def _step(self, batch: dict[str, torch.Tensor], stage: str) -> torch.Tensor:
+        out = self(batch["image"]) * 1e3
+        target = torch.stack([batch["horizon"], batch["water"]], 1) * 1e3
+        loss = F.smooth_l1_loss(out, target, beta=1.0)
+        size = len(out)
+        self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=size)
+        self.log(f"{stage}/horizon_mae_mrad", (out[:, 0] - target[:, 0]).abs().mean(), batch_size=size)
+        return loss
+
+    def training_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> torch.Tensor:
+        return self._step(batch, "train")
+
+    def validation_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> None:
+        self._step(batch, "val")
+
+    def test_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> None:
+        out = self(batch["image"])
+        px_per_mrad = batch["image"].shape[-1] / (2 * math.pi) / 1e3
+
+        def frame_error(profile: torch.Tensor, key: str) -> torch.Tensor:
+            return ((profile - batch[key]).abs() * 1e3).median(-1).values  # (B,) mrad
+
+        horizon = frame_error(out[:, 0], "true_horizon")
+        water = frame_error(out[:, 1], "true_water")
+        classical = frame_error(batch["classical_horizon"], "true_horizon")
+        self._test_outputs.append({
+            "horizon_mrad": horizon, "water_mrad": water, "classical_horizon_mrad": classical,
+            "horizon_px": horizon * px_per_mrad, "water_px": water * px_per_mrad,
+            "classical_horizon_px": classical * px_per_mrad,
+            "classical_ok": batch["classical_ok"], "degraded": batch["degraded"],
+        })
+
+    def on_test_epoch_end(self) -> None:
+        r = self._collect()
+        errors = {k: r[k] for k in ("horizon_mrad", "water_mrad", "classical_horizon_mrad", "horizon_px",
+                                    "water_px", "classical_horizon_px")}
+        failures = {
+            "failure_rate": r["horizon_mrad"] > self.fail_mrad,
+            "classical_failure_rate": ~r["classical_ok"] | (r["classical_horizon_mrad"] > self.fail_mrad),
+        }
+        self.log_dict(_summaries(errors, failures, r["degraded"], "test"))
+
+
+class LossCurves(Callback):
+    """Draw the logged training and validation losses (CSVLogger ``metrics.csv``) to a PNG when fitting ends.
+
+    Args:
+        path: PNG file; relative paths are taken inside the logger's directory.
+    """
+
+    def __init__(self, path: str = "loss_curves.png") -> None:
+        super().__init__()
+        self.path = path
+
+    def on_fit_end(self, trainer: Trainer, pl_module: LightningModule) -> None:
+        if trainer.logger is None or trainer.logger.log_dir is None:
+            return
+        metrics = Path(trainer.logger.log_dir) / "metrics.csv"
+        if not metrics.is_file():
+            return
+        curves: dict[str, tuple[list[float], list[float]]] = {}
+        with metrics.open() as f:
+            for row in csv.DictReader(f):
+                for key in ("train/loss_epoch", "train/loss_step", "val/loss"):
+                    if row.get(key):
+                        steps, values = curves.setdefault(key, ([], []))
+                        steps.append(float(row["step"]))
+                        values.append(float(row[key]))
+        if not curves:
+            return
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(6, 3.6))
+        for key, (steps, values) in curves.items():
+            ax.plot(steps, values, label=key, alpha=0.5 if key.endswith("step") else 1.0)
+        ax.set_xlabel("step")
+        ax.set_ylabel("loss")
+        ax.set_yscale("log")
+        ax.set_title(type(pl_module).__name__)
+        ax.legend()
+        fig.tight_layout()
+        path = Path(self.path)
+        path = path if path.is_absolute() else Path(trainer.logger.log_dir) / path
+        fig.savefig(path, dpi=110)
+        plt.close(fig)

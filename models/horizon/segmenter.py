@@ -1,0 +1,58 @@
+"""HorizonSegmenter (ch. 4.3, fig. 4.6): horizon and water rows per column of a levelled panorama.
+
+ResNet backbone -> column pooling -> 1x1 projection -> two layers that double the horizontal resolution
+(transposed 1-D convolutions) -> a convolutional output head with two values per column: the tan elevation of
+the horizon (sky above) and of the water line (sea below). The output is resampled linearly to the input
+columns. The head is convolutional, as the thesis's footnote recommends, so any input width works.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from models.backbones import ResNetBackbone
+from models.horizon.column_pool import ColumnPool
+
+
+class HorizonSegmenter(nn.Module):
+    """Per-column horizon and water line regression network.
+
+    Args:
+        backbone, weights, stage, frozen, heads, head_channels: as in ``HorizonFinder``.
+        channels: channels of the projection and upsampling layers.
+
+    Shapes:
+        image (B, 3, H, W) levelled panorama (or part of one) in [0, 1] -> (B, 2, W) tan elevation of the
+        horizon (channel 0) and water line (channel 1) per input column; rows = (H - 1) / 2 - t W / (2 pi).
+    """
+
+    def __init__(
+        self,
+        backbone: str = "resnet50",
+        weights: str | None = None,
+        stage: str = "layer4",
+        frozen: bool = False,
+        heads: int = 4,
+        head_channels: int = 32,
+        channels: int = 64,
+    ) -> None:
+        super().__init__()
+        self.stage = stage
+        self.backbone = ResNetBackbone(backbone, weights=weights, frozen=frozen, stages=(stage,))
+        self.pool = ColumnPool(self.backbone.channels[stage], heads, head_channels)
+        self.project = nn.Conv1d(self.pool.out_channels, channels, 1)
+        self.up1 = nn.ConvTranspose1d(channels, channels, 4, stride=2, padding=1)
+        self.up2 = nn.ConvTranspose1d(channels, channels, 4, stride=2, padding=1)
+        self.head = nn.Conv1d(channels, 2, 3, padding=1)
+        self.skip = nn.Conv1d(heads, 2, 1)  # the pooled positions are already tan elevations
+
+    def forward(self, image: torch.Tensor) -> torch.Tensor:
+        pooled, position = self.pool(self.backbone(image)[self.stage])
+        x = F.relu(self.project(torch.cat([pooled, position], 1)))
+        x = F.relu(self.up1(x))
+        x = F.relu(self.up2(x))
+        base = F.interpolate(self.skip(position), size=x.shape[-1], mode="linear", align_corners=False)
+        out = self.head(x) * 0.05 + base
+        return F.interpolate(out, size=image.shape[-1], mode="linear", align_corners=False)
