@@ -137,6 +137,47 @@ def _render_dataset(args: argparse.Namespace) -> int:
     print(f"wrote {settings.count} panoramas to {out}")
     return 0
 
+# --- track ------------------------------------------------------------------------------------------------------
+
+
+def _track_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--frames", required=True, help="folder of frames (sorted by name) or a glob like 'clip/*.png'")
+    start = p.add_mutually_exclusive_group(required=True)
+    start.add_argument("--points", help="start points in the first frame: .npy/.npz (P, 2) or text 'x y' lines")
+    start.add_argument("--detect", type=int, help="detect this many good features to track in the first frame")
+    p.add_argument("--method", default="ccot", choices=("ccot", "ccot_ff", "mosse", "klt"),
+                   help="DCF variant, or klt = OpenCV pyramidal Lucas-Kanade (default: ccot)")
+    p.add_argument("--out", required=True, help="output .npz with tracks (T, P, 2), lost (T, P), psr (T, P)")
+    p.add_argument("--video", help="also write an overlay video (.mp4)")
+    p.add_argument("--device", default="cpu", help="torch device for the DCF methods (default: cpu)")
+
+
+@command("track", "Track points through gray frames with correlation filters (or KLT) and save the tracks.",
+         _track_arguments)
+def _track(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from data.flow.frames import read_frames, read_points
+    from models.tracking.overlay import write_overlay_video
+    from models.tracking.run import track_points
+
+    frames, paths = read_frames(args.frames)
+    points = read_points(args.points) if args.points else None
+    start = time.perf_counter()
+    result = track_points(frames, points, args.detect, args.method, args.device, progress=True)
+    seconds = time.perf_counter() - start
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    np.savez(args.out, method=args.method, frames=np.array([str(p) for p in paths]), **result)
+    if args.video:
+        write_overlay_video(args.video, frames, result["tracks"], result["lost"])
+    n_frames, n_points = result["lost"].shape
+    lost = int(result["lost"][-1].sum())
+    print(f"{args.method}: {n_points} points through {n_frames} frames in {seconds:.1f} s "
+          f"({n_points * max(n_frames - 1, 1) / seconds:.0f} point-frames/s), {lost} lost at the end; "
+          f"wrote {args.out}" + (f" and {args.video}" if args.video else ""))
+    return 0
+
+
 # --- demo -------------------------------------------------------------------------------------------------------
 
 DEMOS = {"triangulation": "bench.triangulation"}
@@ -155,6 +196,45 @@ def _demo(args: argparse.Namespace) -> int:
         print(f"\n=== {name} " + "=" * (70 - len(name)))
         importlib.import_module(DEMOS[name]).demo()
         print(f"({name}: {time.perf_counter() - start:.0f} s)")
+    return 0
+
+
+# --- segment (FRTM video object segmentation, thesis ch. 5) -----------------------------------------------------
+
+
+def _segment_arguments(p: argparse.ArgumentParser) -> None:
+    src = p.add_argument_group("input: one video folder or a whole DAVIS split")
+    src.add_argument("--video", help="folder of frames (sorted by name)")
+    src.add_argument("--mask", help="first-frame mask PNG (palette ids or binary gray)")
+    src.add_argument("--davis", help="DAVIS root; segments and scores every sequence of --split")
+    src.add_argument("--split", default="val", help="DAVIS ImageSets split (default val)")
+    src.add_argument("--resolution", default="480p", help="DAVIS resolution folder (default 480p)")
+    src.add_argument("--max-frames", type=int, help="DAVIS: cut sequences to this many frames")
+    model = p.add_argument_group("model: exactly one")
+    model.add_argument("--ckpt", help="FRTMSegmentation checkpoint from train.py")
+    model.add_argument("--onnx", help="folder written by `python -m export.vos_onnx`")
+    p.add_argument("--out", required=True, help="output folder for palette PNG masks")
+    p.add_argument("--overlay", help="also write an overlay video (e.g. out.mp4)")
+
+
+@command("segment", "Segment objects through a video from a first-frame mask (FRTM), or a DAVIS split with J&F.",
+         _segment_arguments)
+def _segment(args: argparse.Namespace) -> int:
+    from models.vos.inference import check_first_frame, load_tracker, segment_davis, segment_folder
+
+    if args.davis is None and (args.video is None or args.mask is None):
+        raise InputError("give --video DIR --mask FIRST.png, or --davis ROOT --split NAME")
+    if args.davis is None:
+        from data.vos.io import list_frames
+
+        check_first_frame(list_frames(args.video), args.mask)  # bad input fails before the model loads
+        tracker = load_tracker(args.ckpt, args.onnx)
+        n, seconds = segment_folder(tracker, args.video, args.mask, args.out, args.overlay)
+        print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS); masks in {args.out}")
+        return 0
+    tracker = load_tracker(args.ckpt, args.onnx)
+    result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames)
+    print(json.dumps({"J&F": result["J&F-Mean"], "J": result["J-Mean"], "F": result["F-Mean"], "FPS": fps}))
     return 0
 
 

@@ -238,3 +238,31 @@ class OnnxFRTMTracker(FRTMTracker):
         wf, p, rho, r_prev = (torch.cat(col) for col in zip(*rows, strict=True))
         self.wf, self.cg_state = wf, (p, rho, r_prev)
 
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W]``: export and parity-check."""
+    import argparse
+    import sys
+
+    p = argparse.ArgumentParser(description="Export an FRTMSegmentation checkpoint to the FRTM ONNX graphs.")
+    p.add_argument("--ckpt", required=True, help="FRTMSegmentation checkpoint")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--height", type=int, default=96, help="example frame height (the graphs accept any)")
+    p.add_argument("--width", type=int, default=160, help="example frame width")
+    args = p.parse_args(argv)
+    from models.vos.inference import load_tracker
+
+    try:
+        tracker = load_tracker(args.ckpt, None)
+        paths = export_frtm(tracker, args.out, args.height, args.width)
+    except InputError as err:
+        print(f"export.vos_onnx: error: {err}", file=sys.stderr)
+        return 2
+    for name, path in paths.items():
+        print(f"{name:>9}: {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

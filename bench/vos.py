@@ -1,0 +1,190 @@
+"""FRTM video object segmentation benchmark: the full method against its baselines, with DAVIS J&F.
+
+    python bench/vos.py [--ckpt CKPT] [--davis ROOT --split NAME --resolution 240p] [--synthetic]
+                        [--speed] [--max-frames N] [--json] [--plot FILE.png]
+
+Methods: ``frtm`` (target model + decoder), ``target_model_only`` (the upsampled target-model score
+thresholded at 0.5, same memory updates) and ``first_frame_copy`` (the first mask repeated). Each gets ``jf``,
+``j``, ``f`` (DAVIS protocol, means over objects), ``fps`` and milliseconds per frame per component
+(backbone, target_model, decoder, update, init; init is per video, spread over its frames). ``--speed``
+adds FPS of the tracker at 240p and 480p (synthetic frames) for the checkpoint's backbone. Without
+``--ckpt`` the networks are untrained (random weights): useful for speed only.
+Prints one JSON object with ``--json``, else a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from data.errors import InputError  # noqa: E402
+from data.vos.datamodule import synthetic_videos  # noqa: E402
+from data.vos.davis import davis_sequences  # noqa: E402
+from models.vos.lit import FRTMSegmentation  # noqa: E402
+from models.vos.metrics import evaluate_sequence, summarize  # noqa: E402
+from models.vos.tracker import COMPONENTS  # noqa: E402
+
+METHODS = ("frtm", "target_model_only", "first_frame_copy")
+
+
+def load_model(ckpt: str | None, **defaults) -> FRTMSegmentation:
+    """The checkpoint's system in eval mode, or an untrained one built from ``defaults``."""
+    if ckpt is None:
+        torch.manual_seed(0)
+        return FRTMSegmentation(**defaults).eval()
+    if not Path(ckpt).is_file():
+        raise InputError(f"checkpoint {ckpt} does not exist")
+    return FRTMSegmentation.load_from_checkpoint(ckpt, map_location="cpu", weights_only=False).eval()
+
+
+def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, torch.Tensor, torch.Tensor]]) -> dict:
+    """Segment ``videos`` (name, frames uint8, labels) with ``method``; J&F statistics, FPS and ms/frame."""
+    per_seq, frames_total, seconds = {}, 0, 0.0
+    timings = dict.fromkeys(COMPONENTS, 0.0)
+    for name, frames, labels in videos:
+        start = time.perf_counter()
+        if method == "first_frame_copy":
+            pred = labels[:1].expand_as(labels).clone()
+            pred[pred == 255] = 0
+        else:
+            tracker = model.make_tracker(use_decoder=method == "frtm")
+            pred = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+            for k, v in tracker.timings.items():
+                timings[k] += v
+        seconds += time.perf_counter() - start
+        frames_total += frames.shape[0]
+        per_seq[name] = evaluate_sequence(pred, labels)
+    glob = summarize(per_seq)
+    out = {"jf": glob["J&F-Mean"], "j": glob["J-Mean"], "f": glob["F-Mean"], "fps": frames_total / seconds}
+    if method != "first_frame_copy":
+        out["ms_per_frame"] = {k: v / frames_total for k, v in timings.items()}
+    out["per_sequence"] = {n: {str(o): s["J&F-Mean"] for o, s in objs.items()} for n, objs in per_seq.items()}
+    return out
+
+
+def speed(model: FRTMSegmentation, n_frames: int = 10) -> dict:
+    """Tracker FPS and ms/frame per component at 240p (240x427) and 480p (480x854) on a synthetic video."""
+    from data.vos.synthetic import synthetic_video
+
+    out = {}
+    for name, (h, w) in {"240p": (240, 427), "480p": (480, 854)}.items():
+        frames, labels = synthetic_video(3, n_frames=n_frames, height=h, width=w)
+        tracker = model.make_tracker()
+        start = time.perf_counter()
+        list(tracker.segment(frames, {0: labels[0]}))
+        total = time.perf_counter() - start
+        per_frame = {k: v / n_frames for k, v in tracker.timings.items()}
+        steady = sum(v for k, v in per_frame.items() if k != "init")
+        out[name] = {"fps": n_frames / total, "fps_after_init": 1000 / steady, "ms_per_frame": per_frame}
+    return out
+
+
+def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Tensor, torch.Tensor]]]:
+    if args.davis:
+        videos = []
+        names = args.sequences.split(",") if args.sequences else None
+        for seq in davis_sequences(args.davis, args.split, args.resolution, names):
+            frames, labels = seq.load(args.max_frames)
+            videos.append((seq.name, frames, labels))
+        return f"davis:{Path(args.davis).name}/{args.split}@{args.resolution}", videos
+    videos = synthetic_videos("test", args.videos, 0, n_frames=args.max_frames or 20, height=args.height,
+                              width=args.width, n_objects=args.objects, n_distractors=1)
+    return f"synthetic:{args.videos}x{args.height}x{args.width}", videos
+
+
+def run(args: argparse.Namespace) -> dict:
+    model = load_model(args.ckpt, backbone=args.backbone, mdim=32, tracker={"channels": 32, "memory_size": 20})
+    result: dict = {"checkpoint": args.ckpt, "backbone": model.hparams.backbone, "methods": {}}
+    if args.davis or args.synthetic or not args.speed:
+        result["dataset"], videos = load_videos(args)
+        for method in METHODS:
+            result["methods"][method] = run_method(model, method, videos)
+    if args.speed:
+        result["speed"] = speed(model)
+    return result
+
+
+def print_table(result: dict) -> None:
+    print(f"dataset {result.get('dataset', '-')}, checkpoint {result['checkpoint'] or 'none (untrained)'}")
+    print(f"{'method':<20}{'J&F':>7}{'J':>7}{'F':>7}{'FPS':>10}  ms/frame " + " ".join(COMPONENTS))
+    for name, m in result["methods"].items():
+        ms = " ".join(f"{m['ms_per_frame'][k]:.0f}" for k in COMPONENTS) if "ms_per_frame" in m else "-"
+        print(f"{name:<20}{100 * m['jf']:7.1f}{100 * m['j']:7.1f}{100 * m['f']:7.1f}{m['fps']:10.2f}  {ms}")
+    for res, s in result.get("speed", {}).items():
+        ms = " ".join(f"{k} {v:.0f}" for k, v in s["ms_per_frame"].items())
+        print(f"speed {res}: {s['fps']:.2f} FPS ({s['fps_after_init']:.2f} after init); ms/frame {ms}")
+
+
+def plot(result: dict, path: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(result["methods"])
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    for n in names:
+        m = result["methods"][n]
+        ax.scatter(m["fps"], 100 * m["jf"], label=n)
+    ax.set_xscale("log")
+    ax.set_xlabel("frames per second")
+    ax.set_ylabel("J&F (%)")
+    ax.set_title(result.get("dataset", "FRTM"))
+    ax.legend()
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--ckpt", help="FRTMSegmentation checkpoint (default: untrained networks)")
+    p.add_argument("--davis", help="DAVIS root, e.g. ../shared/data/davis2016")
+    p.add_argument("--split", default="val", help="ImageSets split name (default val)")
+    p.add_argument("--resolution", default="480p", help="resolution folder (default 480p)")
+    p.add_argument("--sequences", help="comma-separated subset of the split's sequences")
+    p.add_argument("--synthetic", action="store_true", help="held-out synthetic videos (the default dataset)")
+    p.add_argument("--videos", type=int, default=8, help="synthetic videos (default 8)")
+    p.add_argument("--height", type=int, default=96)
+    p.add_argument("--width", type=int, default=160)
+    p.add_argument("--objects", type=int, default=2, help="objects per synthetic video (default 2)")
+    p.add_argument("--max-frames", type=int, help="cut videos to this many frames")
+    p.add_argument("--backbone", default="resnet18", help="backbone of the untrained model (no --ckpt)")
+    p.add_argument("--speed", action="store_true", help="measure FPS at 240p and 480p")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", help="write a J&F-vs-FPS PNG")
+    return p.parse_args(argv)
+
+
+def demo() -> None:
+    """Small run (< 1 minute on 2 cores): untrained networks on 2 short synthetic videos; prints the table."""
+    args = parse_args(["--videos", "2", "--max-frames", "8", "--height", "64", "--width", "96"])
+    print_table(run(args))
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:
+        result = run(args)
+    except InputError as err:
+        print(f"bench/vos.py: error: {err}", file=sys.stderr)
+        return 2
+    if args.plot:
+        plot(result, args.plot)
+    if args.json:
+        print(json.dumps(result, indent=1))
+    else:
+        print_table(result)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,119 @@
+"""Running FRTM on folders of frames and on DAVIS splits (used by ``infer.py segment``): input checks, palette
+PNG output, overlay videos and J&F scoring."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+
+from data.errors import InputError
+from data.vos.davis import davis_sequences
+from data.vos.io import davis_palette, list_frames, read_frame, read_mask, write_mask
+from models.vos.metrics import evaluate_sequence, write_csv
+from models.vos.tracker import FRTMTracker
+
+
+def load_tracker(ckpt: str | None, onnx_dir: str | None) -> FRTMTracker:
+    """Tracker from a Lightning checkpoint or an ONNX export folder (exactly one of them)."""
+    if (ckpt is None) == (onnx_dir is None):
+        raise InputError("give exactly one of --ckpt CKPT or --onnx DIR")
+    if onnx_dir is not None:
+        from export.vos_onnx import OnnxFRTMTracker
+
+        return OnnxFRTMTracker(onnx_dir)
+    if not Path(ckpt).is_file():
+        raise InputError(f"checkpoint {ckpt} does not exist")
+    from models.vos.lit import FRTMSegmentation
+
+    try:
+        model = FRTMSegmentation.load_from_checkpoint(ckpt, map_location="cpu", weights_only=False)
+    except (RuntimeError, KeyError, TypeError) as err:
+        raise InputError(f"checkpoint {ckpt} is not an FRTMSegmentation checkpoint ({err})") from err
+    return model.eval().make_tracker()
+
+
+def check_first_frame(frames: list[Path], mask_path: str | Path) -> torch.Tensor:
+    """Read and validate the first-frame mask against the first frame; returns the (H, W) label map."""
+    mask = read_mask(mask_path)
+    first = read_frame(frames[0])
+    if mask.shape != first.shape[-2:]:
+        raise InputError(f"mask {mask_path} is {tuple(mask.shape)} (H, W) but frame {frames[0]} is "
+                         f"{tuple(first.shape[-2:])}")
+    if not ((mask > 0) & (mask < 255)).any():
+        raise InputError(f"mask {mask_path} labels no object (it is empty)")
+    return mask
+
+
+def _overlay(image: torch.Tensor, labels: torch.Tensor, palette: np.ndarray) -> np.ndarray:
+    rgb = image.permute(1, 2, 0).numpy().astype(np.float32)
+    colour = palette[labels.numpy().clip(0, 255)]
+    alpha = (labels.numpy() > 0)[..., None] * 0.5
+    return cv2.cvtColor((rgb * (1 - alpha) + colour * alpha).astype(np.uint8), cv2.COLOR_RGB2BGR)
+
+
+def segment_folder(
+    tracker: FRTMTracker, video: str | Path, mask_path: str | Path, out: str | Path, overlay: str | None = None,
+    fps: float = 24.0,
+) -> tuple[int, float]:
+    """Segment the frames of ``video`` from the first-frame mask; write ``out/<frame>.png`` palette masks and
+    optionally an overlay video. Returns (frames, seconds)."""
+    frames = list_frames(video)
+    mask = check_first_frame(frames, mask_path)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    palette = np.array(davis_palette(), dtype=np.float32).reshape(256, 3)
+    writer = None
+    start = time.perf_counter()
+    images = (read_frame(p) for p in frames)
+    for path, (image, labels) in zip(frames, _with_images(tracker, images, mask), strict=True):
+        write_mask(out / f"{path.stem}.png", labels.to(torch.uint8))
+        if overlay:
+            if writer is None:
+                Path(overlay).parent.mkdir(parents=True, exist_ok=True)
+                writer = cv2.VideoWriter(str(overlay), cv2.VideoWriter_fourcc(*"mp4v"), fps,
+                                         (image.shape[-1], image.shape[-2]))
+            writer.write(_overlay(image, labels, palette))
+    if writer is not None:
+        writer.release()
+    return len(frames), time.perf_counter() - start
+
+
+def _with_images(tracker: FRTMTracker, images, mask: torch.Tensor):
+    """Yield (image, labels) pairs while the tracker consumes the same frames; checks frame sizes."""
+    size = mask.shape
+    kept: list[torch.Tensor] = []
+
+    def frames():
+        for i, image in enumerate(images):
+            if image.shape[-2:] != size:
+                raise InputError(f"frame {i} is {tuple(image.shape[-2:])} but the first mask is {tuple(size)}")
+            kept.append(image)
+            yield image
+
+    for labels in tracker.segment(frames(), {0: mask}):
+        yield kept.pop(0), labels
+
+
+def segment_davis(
+    tracker: FRTMTracker, root: str | Path, split: str, resolution: str, out: str | Path,
+    max_frames: int | None = None,
+) -> tuple[dict[str, float], float]:
+    """Segment every sequence of a DAVIS split, write palette PNGs under ``out/<sequence>/`` and the
+    per-object CSV ``out/per_sequence.csv``; returns (global J&F statistics, FPS)."""
+    out = Path(out)
+    per_seq, n_frames, seconds = {}, 0, 0.0
+    for seq in davis_sequences(root, split, resolution):
+        frames, labels = seq.load(max_frames)
+        start = time.perf_counter()
+        pred = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+        seconds += time.perf_counter() - start
+        n_frames += frames.shape[0]
+        for path, lab in zip(seq.frames, pred, strict=False):
+            write_mask(out / seq.name / f"{path.stem}.png", lab.to(torch.uint8))
+        gt = torch.where(labels < 0, 0, labels)
+        per_seq[seq.name] = evaluate_sequence(pred, gt)
+    return write_csv(per_seq, out / "per_sequence.csv"), n_frames / max(seconds, 1e-9)

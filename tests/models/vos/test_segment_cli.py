@@ -1,0 +1,69 @@
+"""``infer.py segment``: a run from a checkpoint writes palette masks; bad input ends in one line, exit 2."""
+
+from pathlib import Path
+
+import lightning
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+import infer
+from data.vos.io import read_mask, write_mask
+from data.vos.synthetic import synthetic_video
+from models.vos.lit import FRTMSegmentation
+
+TRACKER = {"channels": 8, "num_aug": 2, "memory_size": 6, "init_schedule": [2], "update_schedule": [2]}
+
+
+@pytest.fixture(scope="module")
+def video(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("vos")
+    frames, labels = synthetic_video(2, n_frames=4, height=48, width=64, n_objects=2)
+    (root / "frames").mkdir()
+    for t, f in enumerate(frames):
+        Image.fromarray((f.permute(1, 2, 0).numpy() * 255).astype(np.uint8)).save(root / "frames" / f"{t:05d}.jpg")
+    write_mask(root / "first.png", labels[0])
+    write_mask(root / "small.png", labels[0, :40])
+    write_mask(root / "empty.png", torch.zeros_like(labels[0]))
+    (root / "broken.jpg").write_bytes(b"\xff\xd8 not really a jpeg")
+    torch.manual_seed(0)
+    model = FRTMSegmentation(mdim=8, tracker=TRACKER)
+    torch.save({"state_dict": model.state_dict(), "hyper_parameters": dict(model.hparams),
+                "pytorch-lightning_version": lightning.__version__}, root / "model.ckpt")
+    return root
+
+
+def test_segment_writes_palette_masks(video: Path, tmp_path: Path) -> None:
+    code = infer.main(["segment", "--video", str(video / "frames"), "--mask", str(video / "first.png"),
+                       "--ckpt", str(video / "model.ckpt"), "--out", str(tmp_path / "out"),
+                       "--overlay", str(tmp_path / "overlay.mp4")])
+    assert code == 0
+    written = sorted((tmp_path / "out").glob("*.png"))
+    assert [p.stem for p in written] == ["00000", "00001", "00002", "00003"]
+    assert Image.open(written[1]).mode == "P"
+    assert torch.equal(read_mask(written[0]), read_mask(video / "first.png"))
+    assert (tmp_path / "overlay.mp4").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    "mask, extra, message",
+    [
+        ("missing.png", [], "does not exist"),
+        ("small.png", [], "is (40, 64)"),
+        ("empty.png", [], "labels no object"),
+        ("first.png", ["--video-broken"], "cannot be read"),
+        ("first.png", ["--no-model"], "exactly one of --ckpt"),
+    ],
+)
+def test_bad_input_exits_2(video: Path, tmp_path: Path, capsys, mask: str, extra: list, message: str) -> None:
+    frames = video / "frames"
+    if "--video-broken" in extra:
+        frames = tmp_path / "frames"
+        frames.mkdir()
+        (frames / "00000.jpg").write_bytes((video / "broken.jpg").read_bytes())
+    model = [] if "--no-model" in extra else ["--ckpt", str(video / "model.ckpt")]
+    code = infer.main(["segment", "--video", str(frames), "--mask", str(video / mask), *model,
+                       "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and message in err[0], err
