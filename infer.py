@@ -180,7 +180,7 @@ def _track(args: argparse.Namespace) -> int:
 
 # --- demo -------------------------------------------------------------------------------------------------------
 
-DEMOS = {"triangulation": "bench.triangulation"}
+DEMOS = {"triangulation": "bench.triangulation", "point_tracking": "bench.point_tracking"}
 
 
 def _demo_arguments(p: argparse.ArgumentParser) -> None:

@@ -32,6 +32,7 @@ if __package__ in (None, ""):
 
 from data.flow import read_sintel_pair, synthetic_sequence, tracks_from_flow  # noqa: E402
 from models.tracking import PointTracker, good_features_to_track  # noqa: E402
+from models.tracking.klt import klt_track  # noqa: E402
 
 METHODS = ("ccot", "ccot_ff", "mosse", "klt")
 THRESHOLDS = (1, 2, 3)
@@ -77,26 +78,10 @@ def synthetic_dataset(n_frames: int, n_points: int, seed: int = 0) -> Dataset:
 
 
 def run_klt(frames: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """``cv2.calcOpticalFlowPyrLK`` (21x21, 3 levels) frame to frame; returns last positions, lost and
-    seconds."""
-    pos = points.astype(np.float32).copy()
-    lost = np.zeros(len(points), dtype=bool)
-    h, w = frames.shape[1:]
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
+    """``cv2.calcOpticalFlowPyrLK`` (21x21, 3 levels) frame to frame; returns last positions, lost and seconds."""
     start = time.perf_counter()
-    for prev, nxt in zip(frames[:-1], frames[1:], strict=True):
-        idx = np.flatnonzero(~lost)
-        if len(idx) == 0:
-            break
-        new, status, _ = cv2.calcOpticalFlowPyrLK(
-            prev, nxt, pos[idx, None], None, winSize=(21, 21), maxLevel=2, criteria=criteria
-        )
-        new = new.reshape(-1, 2)
-        ok = status.ravel() == 1
-        ok &= (new[:, 0] >= 0) & (new[:, 0] <= w - 1) & (new[:, 1] >= 0) & (new[:, 1] <= h - 1)
-        pos[idx[ok]] = new[ok]
-        lost[idx[~ok]] = True
-    return pos.astype(np.float64), lost, time.perf_counter() - start
+    tracks, lost = klt_track(list(frames), points)
+    return tracks[-1], lost[-1], time.perf_counter() - start
 
 
 def run_dcf(method: str, frames: np.ndarray, points: np.ndarray, device: str = "cpu"):
@@ -204,9 +189,8 @@ def plot(result: dict, path: str | Path) -> None:
 
 
 def demo() -> None:
-    """Small run (< 1 minute on 2 cores): synthetic sequence of 20 frames, 300 points, all methods."""
-    torch.manual_seed(0)
-    data = {"synthetic": synthetic_dataset(20, 300, seed=1)}
+    """Small run (< 1 minute on 2 cores): synthetic sequence of 20 frames, 150 points, all methods."""
+    data = {"synthetic": synthetic_dataset(20, 150, seed=1)}
     print(table(evaluate(data)))
 
 
@@ -221,9 +205,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--device", default="cpu", help="torch device for the DCF trackers")
+    parser.add_argument(
+        "--threads", type=int, default=1, help="CPU threads for torch and OpenCV alike (1: fair on a shared CPU)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     parser.add_argument("--plot", help="write EPE distributions and precision curves to this PNG")
     args = parser.parse_args(argv)
+    torch.set_num_threads(args.threads)
+    cv2.setNumThreads(args.threads)
     datasets = {}
     for folder in args.sintel:
         path = Path(folder)

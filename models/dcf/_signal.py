@@ -27,7 +27,7 @@ def signal_dims(ndim: int) -> tuple[int, ...]:
 
 def full_frequencies(n: int, device: torch.device, dtype: torch.dtype) -> Tensor:
     """Integer frequencies of a full DFT axis of length ``n`` in FFT order: 0, 1, .., -1."""
-    return torch.fft.fftfreq(n, d=1.0 / n, device=device, dtype=dtype).round()
+    return torch.remainder(torch.arange(n, device=device, dtype=dtype) + n // 2, n) - n // 2
 
 
 def half_frequencies(n: int, device: torch.device, dtype: torch.dtype) -> Tensor:

@@ -134,12 +134,13 @@ class PointTracker(nn.Module):
         x = (patches - mean) / (std + 1e-5) * self.window.to(patches.dtype)
         return torch.fft.rfft2(x) if self.method == "mosse" else ccot_sample(x, 2)
 
-    def _samples(self, pyramid: list[Tensor], positions: Tensor) -> Tensor:
+    def _samples(self, pyramid: list[Tensor], positions: Tensor, stack: bool = True) -> Tensor | list[Tensor]:
+        """Spectra ``(L, P, N, K)`` (or a list of L) of the patches around ``positions`` at every level."""
         spectra = []
         for level, image in enumerate(pyramid):
             centres = (positions + 0.5) / 2**level - 0.5
             spectra.append(self._spectrum(extract_patches(image, centres, self.size)))
-        return torch.stack(spectra)
+        return torch.stack(spectra) if stack else spectra
 
     @staticmethod
     def _frame(frame: Tensor) -> Tensor:
@@ -182,7 +183,9 @@ class PointTracker(nn.Module):
         Returns:
             positions, lost, psr ``(P,)``, A, B after this frame.
         """
-        A = torch.view_as_complex(A)
+        A = [
+            torch.view_as_complex(A[level]) for level in range(self.levels)
+        ]  # complex slicing does not export
         pyramid = image_pyramid(frame, self.levels)
         size = (self.size, self.size)
         start = torch.where(lost.unsqueeze(-1), torch.zeros_like(positions), positions)
@@ -204,11 +207,14 @@ class PointTracker(nn.Module):
         moved = start + d
         lost = lost | ~self._inside(moved, frame) | ~(psr >= self.psr_threshold)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
-        Z = self._samples(pyramid, torch.where(lost.unsqueeze(-1), start, moved))
+        Z = self._samples(pyramid, torch.where(lost.unsqueeze(-1), start, moved), stack=False)
         eta = torch.where(lost, torch.zeros_like(psr), torch.full_like(psr, self.eta)).reshape(1, -1, 1, 1)
         # MOSSE's running update has the same form as the continuous filter's sample weighting.
-        A, B = ccot_update(A, B, Z, self.label, eta)
-        return positions, lost, psr, torch.view_as_real(A), B
+        updated = [
+            ccot_update(A[level], B[level], Z[level], self.label, eta[0]) for level in range(self.levels)
+        ]
+        A = torch.stack([torch.view_as_real(a) for a, _ in updated])
+        return positions, lost, psr, A, torch.stack([b for _, b in updated])
 
     def step(self, frame: Tensor, state: TrackerState) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``."""

@@ -1,0 +1,61 @@
+"""Frame folders or glob patterns, and point lists, for the ``track`` command."""
+
+from __future__ import annotations
+
+import glob
+from pathlib import Path
+
+import numpy as np
+
+from data.errors import InputError
+from data.flow.sintel import read_frame_gray
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
+
+
+def frame_paths(spec: str | Path) -> list[Path]:
+    """Image files of a folder (sorted by name) or of a glob pattern such as ``clip/*.png``."""
+    path = Path(spec)
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    else:
+        files = sorted(Path(p) for p in glob.glob(str(spec)) if Path(p).suffix.lower() in IMAGE_SUFFIXES)
+    if not files:
+        raise InputError(f"no image frames found at {spec}")
+    return files
+
+
+def read_frames(spec: str | Path) -> tuple[list[np.ndarray], list[Path]]:
+    """Gray frames ``(H, W)`` float32 in [0, 255] of a folder or glob, all of one size, and their paths."""
+    paths = frame_paths(spec)
+    frames = [read_frame_gray(p) for p in paths]
+    for path, frame in zip(paths, frames, strict=True):
+        if frame.shape != frames[0].shape:
+            raise InputError(f"frame {path} has size {frame.shape}, {paths[0]} has {frames[0].shape}")
+    return frames, paths
+
+
+def read_points(path: str | Path) -> np.ndarray:
+    """``(P, 2)`` (x, y) points from ``.npy``, ``.npz`` (array ``points`` or the first one) or text (two
+    numbers per line, separated by spaces or commas; ``#`` comments)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"points file not found: {path}")
+    try:
+        if path.suffix == ".npy":
+            points = np.load(path)
+        elif path.suffix == ".npz":
+            with np.load(path) as data:
+                points = data["points"] if "points" in data else data[data.files[0]]
+        else:
+            points = np.loadtxt(path, delimiter="," if path.suffix == ".csv" else None, ndmin=2)
+    except (ValueError, OSError, IndexError) as err:
+        raise InputError(f"{path}: cannot read points ({err})") from err
+    points = np.asarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 2:
+        raise InputError(f"{path}: points must be (P, 2) (x, y), got shape {points.shape}")
+    if len(points) == 0:
+        raise InputError(f"{path}: the point set is empty")
+    if not np.isfinite(points).all():
+        raise InputError(f"{path}: points contain NaN or infinity")
+    return points

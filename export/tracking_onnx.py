@@ -1,0 +1,69 @@
+"""Export one step of the DCF point tracker to ONNX (filters as state in and out).
+
+    python -m export.tracking_onnx --out track_step.onnx [--method ccot] [--height 240 --width 320]
+
+Inputs: ``frame`` (1, 1, H, W) gray float32 (H, W dynamic), ``positions`` (P, 2), ``lost`` (P,) bool and the
+filter state ``A`` (L, P, N, K, 2) (real and imaginary parts of the numerators) and ``B`` (L, P, N, K), with a
+dynamic number of points P. Outputs: ``positions``, ``lost``, ``psr`` (P,) and the updated ``A``, ``B``. The
+graph uses DFT (opset >= 18), GridSample and a fixed number of Newton iterations; the first frame's state comes
+from :meth:`PointTracker.init` (or from running a step on the same frame twice).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import torch
+
+from export.onnx import export_onnx
+from models.tracking import PointTracker
+
+INPUTS = ("frame", "positions", "lost", "A", "B")
+OUTPUTS = ("positions_out", "lost_out", "psr", "A_out", "B_out")
+
+
+def example_inputs(tracker: PointTracker, height: int, width: int, points: int, seed: int = 0):
+    """Real inputs for one step: a textured frame, its filters at random points, and a shifted next frame."""
+    gen = torch.Generator().manual_seed(seed)
+    base = torch.rand(1, 1, height // 8 + 2, width // 8 + 2, generator=gen) * 255
+    frame = torch.nn.functional.interpolate(base, size=(height, width), mode="bicubic", align_corners=False)
+    frame = frame + 10 * torch.rand(1, 1, height, width, generator=gen)
+    pts = torch.rand(points, 2, generator=gen) * torch.tensor([width - 1.0, height - 1.0])
+    state = tracker.init(frame[0, 0], pts)
+    nxt = torch.roll(frame, (2, -3), (2, 3))
+    return nxt, state.positions, state.lost, torch.view_as_real(state.A).contiguous(), state.B
+
+
+def export_tracking_step(
+    path: str | Path, method: str = "ccot", height: int = 240, width: int = 320, points: int = 64
+) -> Path:
+    """Export :meth:`PointTracker.forward` for ``method`` with dynamic H, W and P; returns the path."""
+    tracker = PointTracker(method).eval()
+    args = example_inputs(tracker, height, width, points)
+    p = torch.export.Dim("points", min=2, max=100_000)
+    h = torch.export.Dim("height", min=64, max=4096)
+    w = torch.export.Dim("width", min=64, max=4096)
+    dynamic = {
+        "frame": {2: h, 3: w},
+        "positions": {0: p},
+        "lost": {0: p},
+        "A": {1: p},
+        "B": {1: p},
+    }
+    with torch.no_grad():
+        return export_onnx(tracker, args, path, INPUTS, OUTPUTS, dynamic_shapes=dynamic)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", required=True, help="output .onnx path")
+    parser.add_argument("--method", default="ccot", choices=["ccot", "ccot_ff", "mosse"])
+    parser.add_argument("--height", type=int, default=240, help="example frame height (the graph is dynamic)")
+    parser.add_argument("--width", type=int, default=320, help="example frame width (the graph is dynamic)")
+    args = parser.parse_args()
+    print(export_tracking_step(args.out, args.method, args.height, args.width))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,71 @@
+"""``infer.py track`` end to end on small synthetic frames, and its one-line errors for bad input."""
+
+import cv2
+import numpy as np
+import pytest
+
+import infer
+from data.flow import synthetic_sequence
+
+
+@pytest.fixture(scope="module")
+def frame_dir(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("frames")
+    seq = synthetic_sequence(frames=4, size=(96, 128), max_motion=4.0, seed=2)
+    for t, frame in enumerate(seq.frames):
+        cv2.imwrite(str(folder / f"f_{t:03d}.png"), frame.round().astype(np.uint8))
+    return folder, seq
+
+
+@pytest.mark.parametrize("method", ["ccot", "klt"])
+def test_track_detect_and_points(frame_dir, tmp_path, method, capsys):
+    folder, seq = frame_dir
+    out = tmp_path / "tracks.npz"
+    assert (
+        infer.main(
+            ["track", "--frames", str(folder), "--detect", "30", "--method", method, "--out", str(out)]
+        )
+        == 0
+    )
+    data = np.load(out)
+    assert data["tracks"].shape[:2] == (4, len(data["points"])) and 10 <= len(data["points"]) <= 30
+    truth, valid = seq.track(data["points"])
+    ok = valid[-1] & ~data["lost"][-1]
+    assert ok.mean() > 0.5
+    assert np.median(np.linalg.norm(data["tracks"][-1] - truth[-1], axis=1)[ok]) < 1.5
+    np.savetxt(tmp_path / "p.txt", [[40.0, 50.0], [-10.0, 5.0]])
+    video = tmp_path / "o.mp4"
+    args = [
+        "track",
+        "--frames",
+        str(folder / "*.png"),
+        "--points",
+        str(tmp_path / "p.txt"),
+        "--method",
+        method,
+    ]
+    assert infer.main([*args, "--out", str(out), "--video", str(video)]) == 0
+    assert np.load(out)["lost"][:, 1].all()  # outside the image: lost, not silently kept
+    assert video.stat().st_size > 0
+
+
+def test_track_errors(frame_dir, tmp_path, capsys):
+    folder, _ = frame_dir
+    out = str(tmp_path / "t.npz")
+    (tmp_path / "empty.txt").write_text("# nothing\n")
+    (tmp_path / "bad.txt").write_text("1 2\n3\n")
+    odd = tmp_path / "odd"
+    odd.mkdir()
+    cv2.imwrite(str(odd / "a.png"), np.zeros((40, 50), np.uint8))
+    cv2.imwrite(str(odd / "b.png"), np.zeros((41, 50), np.uint8))
+    cases = [
+        (["--frames", str(tmp_path / "none"), "--detect", "5"], "no image frames"),
+        (["--frames", str(folder), "--points", str(tmp_path / "empty.txt")], "empty"),
+        (["--frames", str(folder), "--points", str(tmp_path / "bad.txt")], "cannot read points"),
+        (["--frames", str(odd), "--detect", "5"], "has size"),
+        (["--frames", str(folder), "--points", str(tmp_path / "missing.npy")], "not found"),
+    ]
+    for args, message in cases:
+        assert infer.main(["track", *args, "--out", out]) == 2
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1, err
