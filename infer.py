@@ -137,6 +137,63 @@ def _render_dataset(args: argparse.Namespace) -> int:
     print(f"wrote {settings.count} panoramas to {out}")
     return 0
 
+
+def _read_panorama_arg(path: Path, min_width: int = 64):
+    """(1, 3, H, W) panorama of ``--image``, checked to look like a 360-degree cylinder."""
+    from data.horizon.datamodule import read_panorama
+
+    image = read_panorama(path)
+    height, width = image.shape[-2:]
+    if width < min_width or height < 16 or width < 2 * height:
+        raise InputError(f"{path}: a 360-degree panorama must be at least {min_width} x 16 px and at least twice "
+                         f"as wide as high, got {width} x {height}")
+    return image[None]
+
+
+def _horizon_label_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--image", type=Path, required=True, help="tilted 360-degree panorama (column 0 = forward)")
+    p.add_argument("--dem", type=Path, required=True, help="GeoTIFF or .npz DEM")
+    p.add_argument("--sea-level", type=float, default=0.0, metavar="M", help="flood the DEM at this level (m)")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--position", type=float, nargs=2, metavar=("X", "Y"), help="GPS in DEM map metres")
+    where.add_argument("--lonlat", type=float, nargs=2, metavar=("LON", "LAT"),
+                       help="GPS in WGS84 degrees (needs a DEM with a CRS)")
+    p.add_argument("--camera-height", type=float, default=2.0, metavar="M", help="above the sea (m)")
+    p.add_argument("--compass", type=float, required=True, metavar="DEG", help="compass heading of column 0")
+    p.add_argument("--max-range", type=float, default=8000.0, metavar="M", help="ray length (m)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+@command("horizon-label", "Classical horizon pipeline (Canny + Hough + eq. 4.1 against the DEM) on one panorama.",
+         _horizon_label_arguments)
+def _horizon_label(args: argparse.Namespace) -> int:
+    import math
+
+    import numpy as np
+    import torch
+
+    from data.horizon.classical import ClassicalHorizon
+    from data.world.dem import load_dem
+    from data.world.raycast import VirtualHorizon
+
+    image = _read_panorama_arg(args.image)
+    dem = load_dem(args.dem, sea_level=args.sea_level, require_crs=args.lonlat is not None)
+    xy = dem.from_lonlat(np.array(args.lonlat)) if args.lonlat else np.array(args.position, dtype=np.float64)
+    dem.check_positions(xy, "--position" if args.position else "--lonlat")
+    width = image.shape[-1]
+    labeller = ClassicalHorizon(VirtualHorizon(dem, bins=width, max_range=args.max_range, step=dem.cell))
+    labels = labeller(image, torch.tensor(xy)[None], torch.tensor([args.camera_height], dtype=torch.float64),
+                      torch.tensor([math.radians(args.compass)], dtype=torch.float64))
+    report = {"pitch_deg": math.degrees(labels.pitch.item()), "roll_deg": math.degrees(labels.roll.item()),
+              "heading_deg": math.degrees(labels.heading.item()), "quality": labels.quality.item(),
+              "ok": bool(labels.ok.item())}
+    if args.json:
+        print(json.dumps(report))
+    else:
+        for key, value in report.items():
+            print(f"{key:>12}: {value:.4f}" if isinstance(value, float) else f"{key:>12}: {value}")
+    return 0 if report["ok"] else 1
+
 # --- track ------------------------------------------------------------------------------------------------------
 
 

@@ -75,6 +75,16 @@ class Dem:
         rows, cols = self.z.shape
         return np.where(inside, self.z[row.clip(0, rows - 1), col.clip(0, cols - 1)], 0.0)
 
+    def from_lonlat(self, lonlat: np.ndarray) -> np.ndarray:
+        """WGS84 (longitude, latitude) degrees (..., 2) to the DEM's map coordinates (..., 2) metres."""
+        if self.crs is None:
+            raise InputError("the DEM has no CRS, which is needed to place longitude/latitude positions on it")
+        from rasterio.warp import transform
+
+        lonlat = np.asarray(lonlat, dtype=np.float64)
+        x, y = transform("EPSG:4326", self.crs, lonlat[..., 0].ravel(), lonlat[..., 1].ravel())
+        return np.stack([np.asarray(x), np.asarray(y)], -1).reshape(lonlat.shape)
+
     def check_positions(self, xy: np.ndarray, name: str = "position") -> None:
         """Raise ``InputError`` naming the first point of xy (..., 2) that lies outside the DEM."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
