@@ -21,7 +21,7 @@ from torch import Tensor, nn
 from models.geometry.midpoint import midpoint_from_views, parallax_threshold
 from models.geometry.projection import check_cameras_and_points, finite_inputs
 from models.geometry.small_linalg import SYM3_INDEX, solve_sym3, sym3_quadratic_form
-from models.geometry.views import View, dot3, split_views
+from models.geometry.views import Views, dot3, split_views
 
 Vec3 = tuple[Tensor, Tensor, Tensor]
 
@@ -42,46 +42,37 @@ class DoglegTriangulation(NamedTuple):
     converged: Tensor
 
 
-class _CentredView(NamedTuple):
-    rows: tuple[Vec3, Vec3]  # A_i[k, :3] for k = 0, 1
-    offsets: tuple[Tensor, Tensor]  # A_i[k] X0~
-    q: Vec3  # P_i[2, :3]
-    w0: Tensor  # P_i[2] X0~
+class _CentredRows(NamedTuple):
+    """The residual rows of all views stacked: row ``k`` of view ``i`` is entry ``2 i + k`` (2N, B)."""
+
+    M: Vec3  # A_i[k, :3], each (2N, B)
+    offset: Tensor  # A_i[k] X0~ (2N, B)
+    q: Vec3  # P_i[2, :3], each (2N, B|1)
+    w0: Tensor  # P_i[2] X0~ (2N, B)
 
 
-def _centre(view: View, X0: Vec3) -> _CentredView:
-    P0, P1, P2 = view.P
-    rows = []
-    offsets = []
-    for Pk, xk in ((P0, view.x), (P1, view.y)):
-        row = tuple(Pk[c] - xk * P2[c] for c in range(4))
-        rows.append(row[:3])
-        offsets.append(dot3(row, X0) + row[3])
-    return _CentredView(tuple(rows), tuple(offsets), P2[:3], dot3(P2, X0) + P2[3])  # type: ignore[arg-type]
+def _centre(views: Views, X0: Vec3) -> _CentredRows:
+    P0, P1, P2 = views.P
+    rows = [torch.cat((P0[c] - views.x * P2[c], P1[c] - views.y * P2[c])) for c in range(4)]
+    depth = dot3(P2, X0) + P2[3]
+    return _CentredRows(
+        (rows[0], rows[1], rows[2]),
+        dot3(rows, X0) + rows[3],
+        tuple(torch.cat((P2[c], P2[c])) for c in range(3)),  # type: ignore[arg-type]
+        torch.cat((depth, depth)),
+    )
 
 
-def _linearise(views: list[_CentredView], d: Vec3) -> tuple[Tensor, Tensor, list[Tensor], list[Tensor]]:
+def _linearise(rows: _CentredRows, d: Vec3) -> tuple[Tensor, Tensor, list[Tensor], list[Tensor]]:
     """Half cost, smallest depth, gradient ``J^T r`` (3) and Hessian ``J^T J`` (6 entries) at ``X0 + d``."""
-    F: Tensor | float = 0.0
-    g: list = [0.0] * 3
-    H: list = [0.0] * 6
-    depths = []
-    for view in views:
-        w = dot3(view.q, d) + view.w0
-        inv_w = 1.0 / w
-        depths.append(w)
-        for row, offset in zip(view.rows, view.offsets, strict=True):
-            r = (dot3(row, d) + offset) * inv_w
-            J = tuple((row[c] - r * view.q[c]) * inv_w for c in range(3))
-            F = F + r * r
-            for c in range(3):
-                g[c] = g[c] + J[c] * r
-            for k, (a, b) in enumerate(SYM3_INDEX):
-                H[k] = H[k] + J[a] * J[b]
-    min_depth = depths[0]
-    for w in depths[1:]:
-        min_depth = torch.minimum(min_depth, w)
-    return 0.5 * F, min_depth, g, H
+    w = dot3(rows.q, d) + rows.w0
+    inv_w = 1.0 / w
+    r = (dot3(rows.M, d) + rows.offset) * inv_w
+    J = [(rows.M[c] - r * rows.q[c]) * inv_w for c in range(3)]
+    F = 0.5 * (r * r).sum(0)
+    g = [(J[c] * r).sum(0) for c in range(3)]
+    H = [(J[a] * J[b]).sum(0) for a, b in SYM3_INDEX]
+    return F, w.amin(0), g, H
 
 
 def _where3(mask: Tensor, a: Vec3, b: Vec3) -> Vec3:
@@ -115,7 +106,7 @@ def _dogleg_step(g: list[Tensor], H: list[Tensor], radius: Tensor) -> tuple[Vec3
 
 
 def dogleg_refine(
-    views: list[View], X0: Vec3, iterations: int = 5, tolerance: float | None = None, early_exit: bool = True
+    views: Views, X0: Vec3, iterations: int = 5, tolerance: float | None = None, early_exit: bool = True
 ) -> tuple[Vec3, Tensor, Tensor, Tensor]:
     """Refine points ``X0`` by Powell's dogleg on the reprojection error.
 
@@ -132,7 +123,7 @@ def dogleg_refine(
     """
     eps = tolerance if tolerance is not None else 1e-2 * torch.finfo(X0[0].dtype).eps ** 0.5
     rounding = 100 * torch.finfo(X0[0].dtype).eps
-    centred = [_centre(v, X0) for v in views]
+    centred = _centre(views, X0)
     d = tuple(torch.zeros_like(v) for v in X0)
     F, depth, g, H = _linearise(centred, d)
     h_gn, _ = solve_sym3(H, tuple(-v for v in g))

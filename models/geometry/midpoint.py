@@ -21,36 +21,31 @@ from models.geometry.small_linalg import (
     solve_sym3,
     sym3_smallest_eigenvalue_estimate,
 )
-from models.geometry.views import View, dot3, split_views
+from models.geometry.views import Views, dot3, split_views
 
 
-def _ray(view: View) -> tuple[tuple[Tensor, ...], tuple[Tensor, ...]]:
-    """Centre ``C = -M^-1 p4`` and unit direction ``M^-1 x~`` (positive depth side) of one view's ray."""
-    M = tuple(row[:3] for row in view.P)
-    p4 = tuple(row[3] for row in view.P)
+def _rays(views: Views) -> tuple[tuple[Tensor, ...], tuple[Tensor, ...]]:
+    """Centres ``C = -M^-1 p4`` (N, B|1) and unit directions ``M^-1 x~`` (N, B) (positive depth side) of all rays."""
+    M = tuple(row[:3] for row in views.P)
+    p4 = tuple(row[3] for row in views.P)
     adj, det = adjugate3(M)  # type: ignore[arg-type]
     centre = tuple(-c / det for c in matvec3(adj, p4))
-    direction = tuple(c * torch.sign(det) for c in matvec3(adj, (view.x, view.y, torch.ones_like(view.x))))
+    direction = tuple(c * torch.sign(det) for c in matvec3(adj, (views.x, views.y, torch.ones_like(views.x))))
     norm = torch.sqrt(dot3(direction, direction))
     return centre, tuple(v / norm for v in direction)
 
 
-def midpoint_from_views(views: list[View]) -> tuple[tuple[Tensor, Tensor, Tensor], Tensor]:
+def midpoint_from_views(views: Views) -> tuple[tuple[Tensor, Tensor, Tensor], Tensor]:
     """Point nearest to all rays, ``(sum_i (I - d_i d_i^T))^-1 sum_i (I - d_i d_i^T) C_i``.
 
     Returns:
         X: three (B,) components of the points (non-finite for parallel rays); lam: (B,) estimate of the
         smallest eigenvalue of the normal matrix (``1 - cos(angle)`` for two rays), small for near-parallel rays.
     """
-    A: list = [0.0] * 6
-    b: list = [0.0] * 3
-    for view in views:
-        C, d = _ray(view)
-        dC = dot3(d, C)
-        for k, (r, s) in enumerate(SYM3_INDEX):
-            A[k] = A[k] + ((1.0 if r == s else 0.0) - d[r] * d[s])
-        for r in range(3):
-            b[r] = b[r] + (C[r] - d[r] * dC)
+    C, d = _rays(views)
+    dC = dot3(d, C)
+    A = [((1.0 if r == s else 0.0) - d[r] * d[s]).sum(0) for r, s in SYM3_INDEX]
+    b = [(C[r] - d[r] * dC).sum(0) for r in range(3)]
     X, det = solve_sym3(A, b)
     return X, sym3_smallest_eigenvalue_estimate(A, det)
 

@@ -1,9 +1,10 @@
-"""Per-view scalar components of cameras and observations.
+"""Cameras and observations as per-entry tensors with the views stacked in front.
 
-The triangulation solvers work on lists of (B,) tensors, one per matrix entry and view, rather than on small
-(B, N, 3, 4) blocks: every operation is then element-wise over points, which keeps eager PyTorch free of tiny
-batched matmuls, lets ``torch.compile`` fuse a whole solve into one loop, and exports to a flat ONNX graph.
-Cameras shared by all points stay (1,) tensors and broadcast for free.
+The triangulation solvers work on one tensor per matrix entry, shaped (N, B) with N views and B points, rather
+than on small (B, N, 3, 4) blocks: every operation is then element-wise over all views and points at once,
+which keeps eager PyTorch free of tiny batched matmuls (and its op count independent of N), lets
+``torch.compile`` fuse a whole solve, and exports to a flat ONNX graph. Cameras shared by all points stay
+(N, 1) tensors and broadcast for free.
 """
 
 from __future__ import annotations
@@ -13,23 +14,21 @@ from typing import NamedTuple
 from torch import Tensor
 
 
-class View(NamedTuple):
-    """One view: camera entries ``P[r][c]`` as (B|1,) tensors and the observation (x, y) as (B,) tensors in px."""
+class Views(NamedTuple):
+    """All views: camera entries ``P[r][c]`` as (N, B|1) tensors and observations x, y as (N, B) tensors in px."""
 
     P: tuple[tuple[Tensor, ...], ...]
     x: Tensor
     y: Tensor
 
 
-def split_views(P: Tensor, x: Tensor) -> list[View]:
-    """(B|1, N, 3, 4) cameras and (B, N, 2) observations -> N ``View``s of scalar components."""
-    views = []
-    for Pi, xi in zip(P.unbind(1), x.unbind(1), strict=True):
-        rows = tuple(tuple(Pi[:, r, c] for c in range(4)) for r in range(3))
-        views.append(View(rows, xi[:, 0], xi[:, 1]))
-    return views
+def split_views(P: Tensor, x: Tensor) -> Views:
+    """(B|1, N, 3, 4) cameras and (B, N, 2) observations -> ``Views`` of per-entry (N, B|1) tensors."""
+    Pt = P.permute(1, 2, 3, 0)
+    xt = x.permute(2, 1, 0)
+    return Views(tuple(tuple(Pt[:, r, c] for c in range(4)) for r in range(3)), xt[0], xt[1])
 
 
-def dot3(a: tuple[Tensor, ...], b: tuple[Tensor, ...]) -> Tensor:
-    """Dot product of two 3-vectors given as component tuples."""
+def dot3(a: tuple[Tensor, ...] | list[Tensor], b: tuple[Tensor, ...] | list[Tensor]) -> Tensor:
+    """Dot product of two 3-vectors given as component tuples (extra components are ignored)."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
