@@ -101,7 +101,7 @@ def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Te
 
 
 def run(args: argparse.Namespace) -> dict:
-    model = load_model(args.ckpt, backbone=args.backbone, mdim=32, tracker={"channels": 32, "memory_size": 20})
+    model = load_model(args.ckpt, backbone=args.backbone)  # untrained: paper-scale decoder and tracker settings
     result: dict = {"checkpoint": args.ckpt, "backbone": model.hparams.backbone, "methods": {}}
     if args.davis or args.synthetic or not args.speed:
         result["dataset"], videos = load_videos(args)

@@ -22,11 +22,8 @@ def ref_boundary(m: np.ndarray) -> np.ndarray:
     """Pixels that differ from an in-image right, lower or lower-right neighbour."""
     h, w = m.shape
     b = np.zeros_like(m, dtype=bool)
-    for y in range(h):
-        for x in range(w):
-            for dy, dx in ((0, 1), (1, 0), (1, 1)):
-                if y + dy < h and x + dx < w and m[y, x] != m[y + dy, x + dx]:
-                    b[y, x] = True
+    for dy, dx in ((0, 1), (1, 0), (1, 1)):
+        b[: h - dy, : w - dx] |= m[: h - dy, : w - dx] != m[dy:, dx:]
     return b
 
 
