@@ -194,6 +194,70 @@ def _horizon_label(args: argparse.Namespace) -> int:
             print(f"{key:>12}: {value:.4f}" if isinstance(value, float) else f"{key:>12}: {value}")
     return 0 if report["ok"] else 1
 
+
+def _horizon_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--image", type=Path, required=True, help="tilted 360-degree panorama (column 0 = forward)")
+    p.add_argument("--finder", type=Path, required=True, help="HorizonFinder checkpoint (.ckpt) or ONNX graph")
+    p.add_argument("--segmenter", type=Path, required=True, help="HorizonSegmenter checkpoint or ONNX graph")
+    p.add_argument("--input-width", type=int, default=512, metavar="PX",
+                   help="network input width (the panorama is resized; default 512)")
+    p.add_argument("--out", type=Path, metavar="FILE.npz", help="write pitch, roll and the per-column profiles")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def _horizon_network(path: Path, which: str):
+    """Callable image -> output tensor of a checkpoint (PyTorch) or an ONNX graph (onnxruntime)."""
+    import torch
+
+    if not path.is_file():
+        raise InputError(f"{which} model not found: {path}")
+    if path.suffix.lower() == ".onnx":
+        from export.onnx import onnx_session, run_onnx
+
+        session = onnx_session(path)
+        return lambda image: torch.from_numpy(run_onnx(session, image)[0])
+    from export.horizon_onnx import load_network
+
+    net = load_network(which, path)
+    return lambda image: net(image).detach()
+
+
+@command("horizon", "Horizon networks on one panorama: HorizonFinder pitch/roll, levelling, HorizonSegmenter "
+         "horizon and water profiles.", _horizon_arguments)
+def _horizon(args: argparse.Namespace) -> int:
+    import math
+
+    import numpy as np
+    import torch
+
+    from data.horizon.datamodule import resize_panorama
+    from models.horizon.cylinder import tangent_to_row, warp_panorama
+    from models.horizon.finder import sincos_to_angles
+
+    if args.input_width < 64 or args.input_width % 32:
+        raise InputError(f"--input-width must be a multiple of 32 and >= 64, got {args.input_width}")
+    image = _read_panorama_arg(args.image)
+    finder = _horizon_network(args.finder, "finder")
+    segmenter = _horizon_network(args.segmenter, "segmenter")
+    with torch.no_grad():
+        pitch, roll = sincos_to_angles(finder(resize_panorama(image, args.input_width)))
+        level = warp_panorama(image, pitch, roll)
+        profiles = segmenter(resize_panorama(level, args.input_width))
+    height, width = image.shape[-2:]
+    profiles = torch.nn.functional.interpolate(profiles, size=width, mode="linear", align_corners=False)[0]
+    horizon, water = profiles.numpy().astype(np.float64)
+    report = {"pitch_deg": math.degrees(pitch.item()), "roll_deg": math.degrees(roll.item()),
+              "horizon_row_median": float(np.median(tangent_to_row(torch.from_numpy(horizon), height, width))),
+              "land_columns": int(np.sum(horizon - water > 2 * math.pi / width))}
+    if args.out:
+        np.savez(args.out, pitch=pitch.item(), roll=roll.item(), horizon=horizon, water=water)
+    if args.json:
+        print(json.dumps(report))
+    else:
+        for key, value in report.items():
+            print(f"{key:>20}: {value:.4f}" if isinstance(value, float) else f"{key:>20}: {value}")
+    return 0
+
 # --- track ------------------------------------------------------------------------------------------------------
 
 

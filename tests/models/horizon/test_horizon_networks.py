@@ -1,12 +1,17 @@
 """HorizonFinder / HorizonSegmenter networks, column pooling, and their Lightning systems end to end."""
 
+import json
 import math
+from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 from lightning.pytorch.cli import LightningCLI
 
+import infer
 from data.horizon.datamodule import HorizonDataModule
+from export.horizon_onnx import export_horizon, load_network
 from models.horizon.column_pool import ColumnPool, row_tangent_grid
 from models.horizon.cylinder import row_tangents
 from models.horizon.finder import HorizonFinder, fourier_pool, sincos_to_angles
@@ -62,18 +67,47 @@ def tiny_data(tmp_path_factory):
     return data
 
 
-@pytest.mark.parametrize("system, task", [(HorizonFinderSystem, "finder"), (HorizonSegmenterSystem, "segmenter")])
-def test_systems_fit_and_test_through_the_cli(tiny_data, tmp_path, system, task):
-    model = {"backbone": "resnet18", "stage": "layer1", "heads": 2, "head_channels": 4, "channels": 8}
-    data = dict(tiny_data, task=task, val_fraction=0.3)
-    if task == "segmenter":
-        data["crop_width"] = 128
-    trainer = {"max_epochs": 1, "default_root_dir": str(tmp_path), "enable_progress_bar": False,
-               "num_sanity_val_steps": 0, "accelerator": "cpu"}
-    cli = LightningCLI(system, HorizonDataModule, run=False, save_config_callback=None,
-                       args={"model": model, "data": data, "trainer": trainer, "seed_everything": 0})
-    cli.trainer.fit(cli.model, cli.datamodule)
-    metrics = cli.trainer.test(cli.model, cli.datamodule, verbose=False)[0]
-    key = "test/all/pitch_deg_median" if task == "finder" else "test/all/horizon_px_median"
+@pytest.fixture(scope="module")
+def trained(tiny_data, tmp_path_factory):
+    """Both systems fitted for one epoch through LightningCLI, tested; returns test metrics and checkpoints."""
+    results = {}
+    for system, task in ((HorizonFinderSystem, "finder"), (HorizonSegmenterSystem, "segmenter")):
+        root = tmp_path_factory.mktemp(task)
+        model = {"backbone": "resnet18", "stage": "layer1", "heads": 2, "head_channels": 4, "channels": 8}
+        data = dict(tiny_data, task=task, val_fraction=0.3)
+        if task == "segmenter":
+            data["crop_width"] = 128
+        trainer = {"max_epochs": 1, "default_root_dir": str(root), "enable_progress_bar": False,
+                   "num_sanity_val_steps": 0, "accelerator": "cpu"}
+        cli = LightningCLI(system, HorizonDataModule, run=False, save_config_callback=None,
+                           args={"model": model, "data": data, "trainer": trainer, "seed_everything": 0})
+        cli.trainer.fit(cli.model, cli.datamodule)
+        metrics = cli.trainer.test(cli.model, cli.datamodule, verbose=False)[0]
+        results[task] = (metrics, next(root.rglob("*.ckpt")))
+    return results
+
+
+@pytest.mark.parametrize("task, key", [("finder", "test/all/pitch_deg_median"),
+                                       ("segmenter", "test/all/horizon_px_median")])
+def test_systems_fit_and_test_through_the_cli(trained, task, key):
+    metrics, _ = trained[task]
     assert math.isfinite(metrics[key]) and "test/degraded/classical_failure_rate" in metrics
     assert 0 <= metrics["test/all/failure_rate"] <= 1
+
+
+def test_infer_horizon_with_checkpoints_and_onnx(trained, tiny_data, tmp_path, capsys):
+    image = str(Path(tiny_data["test_root"]) / "images" / "000000.png")
+    finder, segmenter = trained["finder"][1], trained["segmenter"][1]
+    args = ["horizon", "--image", image, "--input-width", "256", "--json", "--out", str(tmp_path / "p.npz")]
+    assert infer.main([*args, "--finder", str(finder), "--segmenter", str(segmenter)]) == 0
+    from_ckpt = json.loads(capsys.readouterr().out)
+    saved = np.load(tmp_path / "p.npz")
+    assert saved["horizon"].shape == (256,) and abs(math.degrees(saved["pitch"]) - from_ckpt["pitch_deg"]) < 1e-9
+    onnx_path = tmp_path / "finder.onnx"
+    export_horizon("finder", load_network("finder", finder), onnx_path, height=32, width=256)
+    assert infer.main([*args, "--finder", str(onnx_path), "--segmenter", str(segmenter)]) == 0
+    from_onnx = json.loads(capsys.readouterr().out)
+    assert abs(from_onnx["pitch_deg"] - from_ckpt["pitch_deg"]) < 1e-3
+    assert infer.main([*args[:-2], "--input-width", "250", "--finder", str(finder),
+                       "--segmenter", str(segmenter)]) == 2
+    assert "multiple of 32" in capsys.readouterr().err
