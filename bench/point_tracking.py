@@ -50,9 +50,9 @@ class Dataset:
 
 
 def detect(frame: np.ndarray, n: int) -> np.ndarray:
-    """Up to ``n`` good features to track in a uint8 frame, as (x, y) float64."""
+    """Up to ``n`` good features to track in a uint8 frame (quality 0.003, 3 px apart), as (x, y) float64."""
     return (
-        good_features_to_track(torch.from_numpy(frame.astype(np.float32)), n, 0.01, 4)
+        good_features_to_track(torch.from_numpy(frame.astype(np.float32)), n, 0.003, 3)
         .numpy()
         .astype(np.float64)
     )
@@ -114,6 +114,7 @@ def metrics(pred: np.ndarray, lost: np.ndarray, data: Dataset, seconds: float) -
         "lost_frac": float((~tracked).mean()),
         "point_frames_per_s": n_tracked / seconds,
         "epe": epe.tolist(),
+        "tracked": tracked.tolist(),
     }
 
 
@@ -171,13 +172,12 @@ def plot(result: dict, path: str | Path) -> None:
     taus = np.linspace(0, 5, 101)
     for row, (name, ds) in zip(axes, result.items(), strict=True):
         for method, m in ds["methods"].items():
-            epe = np.maximum(np.asarray(m["epe"]), 1e-3)
+            epe, tracked = np.maximum(np.asarray(m["epe"]), 1e-3), np.asarray(m["tracked"])
             row[0].hist(
                 epe, bins, histtype="step", density=False, label=f"{method} ({m['inlier_epe_mean']:.2f})"
             )
-            row[1].plot(
-                taus, [(epe < t).mean() for t in taus], label=f"{method} ({m['precision_at']['3']:.3f})"
-            )
+            precision = [(tracked & (epe < t)).mean() for t in taus]
+            row[1].plot(taus, precision, label=f"{method} ({m['precision_at']['3']:.3f})")
         row[0].set(xscale="log", xlabel="EPE (px)", ylabel="points", title=f"{name}: EPE distribution")
         row[1].set(xlabel="threshold (px)", ylabel="precision", title=f"{name}: precision", ylim=(0, 1))
         row[0].legend(fontsize=8)
@@ -206,29 +206,35 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--device", default="cpu", help="torch device for the DCF trackers")
     parser.add_argument(
-        "--threads", type=int, default=1, help="CPU threads for torch and OpenCV alike (1: fair on a shared CPU)"
+        "--threads",
+        type=int,
+        default=1,
+        help="CPU threads for torch and OpenCV alike (1: fair on a shared CPU)",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     parser.add_argument("--plot", help="write EPE distributions and precision curves to this PNG")
     args = parser.parse_args(argv)
+    threads = torch.get_num_threads(), cv2.getNumThreads()
     torch.set_num_threads(args.threads)
     cv2.setNumThreads(args.threads)
-    datasets = {}
-    for folder in args.sintel:
-        path = Path(folder)
-        datasets[f"sintel_{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points)
-    if args.synthetic or not datasets:
-        datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed)
-    result = evaluate(datasets, args.methods, args.device)
+    try:
+        datasets = {}
+        for folder in args.sintel:
+            path = Path(folder)
+            datasets[f"sintel_{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points)
+        if args.synthetic or not datasets:
+            datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed)
+        result = evaluate(datasets, args.methods, args.device)
+    finally:
+        torch.set_num_threads(threads[0])
+        cv2.setNumThreads(threads[1])
     if args.plot:
         plot(result, args.plot)
     for ds in result.values():
         for m in ds["methods"].values():
-            del m["epe"]
+            del m["epe"], m["tracked"]
     if args.json:
-        print(
-            json.dumps({"datasets": result, "device": args.device, "torch_threads": torch.get_num_threads()})
-        )
+        print(json.dumps({"datasets": result, "device": args.device, "threads": args.threads}))
     else:
         print(table(result))
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import glob
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -48,7 +49,9 @@ def read_points(path: str | Path) -> np.ndarray:
             with np.load(path) as data:
                 points = data["points"] if "points" in data else data[data.files[0]]
         else:
-            points = np.loadtxt(path, delimiter="," if path.suffix == ".csv" else None, ndmin=2)
+            with warnings.catch_warnings():  # an empty file is reported below, not as a warning
+                warnings.simplefilter("ignore", UserWarning)
+                points = np.loadtxt(path, delimiter="," if path.suffix == ".csv" else None, ndmin=2)
     except (ValueError, OSError, IndexError) as err:
         raise InputError(f"{path}: cannot read points ({err})") from err
     points = np.asarray(points, dtype=np.float64)

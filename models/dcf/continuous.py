@@ -206,7 +206,9 @@ def _series(sr: Tensor, si: Tensor, theta: Tensor, ks: list[Tensor], w: Tensor, 
     return value, grad, [[hyy, hyx], [hyx, hxx]]
 
 
-def fourier_series_peak(shat: Tensor, size: tuple[int, ...], iterations: int = 5) -> tuple[Tensor, Tensor]:
+def fourier_series_peak(
+    shat: Tensor, size: tuple[int, ...], iterations: int = 5, grid: Tensor | None = None
+) -> tuple[Tensor, Tensor]:
     """Sub-bin maximum of the periodic score ``s(t) = sum_k s^[k] exp(i 2 pi k . t / N)``.
 
     The grid maximum (inverse DFT) starts ``iterations`` Newton steps on the Fourier series (2x2
@@ -216,6 +218,7 @@ def fourier_series_peak(shat: Tensor, size: tuple[int, ...], iterations: int = 5
 
     Args:
         shat: ``(..., *K)`` complex half spectrum of the score; size: odd signal size ``S``.
+        grid: the sampled score ``irfftn(shat)`` ``(..., *S)`` if already computed.
     Returns:
         shift ``(..., ndim)`` in bins (last axis first, in ``[-N/2, N/2)``); score ``(...)`` at the peak.
     """
@@ -223,7 +226,8 @@ def fourier_series_peak(shat: Tensor, size: tuple[int, ...], iterations: int = 5
     _check_odd(size)
     dims = signal_dims(ndim)
     real_dtype = shat.real.dtype
-    grid = torch.fft.irfftn(shat, s=size, dim=dims)
+    if grid is None:
+        grid = torch.fft.irfftn(shat, s=size, dim=dims)
     arg = grid.flatten(-ndim).argmax(dim=-1)
     t0 = torch.stack(
         [wrap_index(i, n).to(real_dtype) for i, n in zip(_unravel(arg, size), size, strict=True)], dim=-1

@@ -37,22 +37,24 @@ def peak_to_sidelobe_ratio(response: Tensor, ndim: int = 2, exclude: int = 11, e
         raise ValueError(f"response of size {size} leaves no sidelobe outside a {exclude}-wide window")
     flat = response.flatten(-ndim)
     peak, arg = flat.max(dim=-1)
-    inside = torch.ones_like(flat, dtype=torch.bool)
-    half = exclude // 2
-    view = [1] * (flat.dim() - 1)
-    for axis, n in enumerate(size):
-        stride = 1
-        for m in size[axis + 1 :]:
-            stride *= m
-        i_peak = (arg // stride) % n
-        i_all = (torch.arange(n_side, device=flat.device) // stride) % n
-        d = torch.remainder(i_all.view(*view, -1) - i_peak.unsqueeze(-1), n)
-        inside = inside & (torch.minimum(d, n - d) <= half)
-    side = (~inside).to(flat.dtype)
-    count = side.sum(-1)
-    mean = (flat * side).sum(-1) / count
-    var = ((flat - mean.unsqueeze(-1)).square() * side).sum(-1) / count
-    return (peak - mean) / (var.sqrt() + eps)
+    # Gather the window around the peak (circularly) instead of masking the whole map; statistics of the sidelobe
+    # are those of the whole map minus the window, computed on values centred by the map mean for accuracy.
+    centre = flat.mean(-1, keepdim=True)
+    shifted = flat - centre
+    index = torch.zeros_like(arg).unsqueeze(-1)
+    stride = n_side
+    for n in size:
+        stride //= n
+        count = min(exclude, n)
+        offsets = torch.arange(count, device=flat.device) - (exclude // 2 if count == exclude else 0)
+        i_peak = (arg // stride) % n if count == exclude else torch.zeros_like(arg)
+        i_axis = torch.remainder(i_peak.unsqueeze(-1) + offsets, n) * stride
+        index = (index.unsqueeze(-1) + i_axis.unsqueeze(-2)).flatten(-2)
+    window = shifted.gather(-1, index)
+    count = n_side - excluded
+    mean = (shifted.sum(-1) - window.sum(-1)) / count
+    var = ((shifted.square().sum(-1) - window.square().sum(-1)) / count - mean.square()).clamp_min(0)
+    return (peak - centre.squeeze(-1) - mean) / (var.sqrt() + eps)
 
 
 class PeakToSidelobeRatio(nn.Module):

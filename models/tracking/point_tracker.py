@@ -38,6 +38,7 @@ from models.dcf import (
     mosse_filter,
     peak_to_sidelobe_ratio,
     response_peak,
+    shift_fourier,
 )
 
 METHODS = ("ccot", "ccot_ff", "mosse")
@@ -102,7 +103,7 @@ class PointTracker(nn.Module):
         self,
         method: str = "ccot",
         levels: int = 3,
-        patch_size: int = 31,
+        patch_size: int = 33,
         sigma: float = 1.0,
         eta: float | None = None,
         reg_rel: float = 1e-2,
@@ -183,31 +184,42 @@ class PointTracker(nn.Module):
         Returns:
             positions, lost, psr ``(P,)``, A, B after this frame.
         """
-        A = [
-            torch.view_as_complex(A[level]) for level in range(self.levels)
-        ]  # complex slicing does not export
+        # slicing a complex tensor does not export, so slice the real view first
+        A = [torch.view_as_complex(A[level]) for level in range(self.levels)]
         pyramid = image_pyramid(frame, self.levels)
         size = (self.size, self.size)
         start = torch.where(lost.unsqueeze(-1), torch.zeros_like(positions), positions)
         d = torch.zeros_like(positions)
-        score = positions.new_zeros(())
+        spectra, centres = [], []
         for level in reversed(range(self.levels)):
-            centres = (start + d + 0.5) / 2**level - 0.5
-            Z = self._spectrum(extract_patches(pyramid[level], centres, self.size))
+            centre = (start + d + 0.5) / 2**level - 0.5
+            Z = self._spectrum(extract_patches(pyramid[level], centre, self.size))
             if self.method == "mosse":
                 S = mosse_filter(A[level], B[level], 2, eps_rel=self.reg_rel) * Z
                 score = torch.fft.irfft2(S, s=size)
                 delta, _ = response_peak(score, 2)
             else:
                 S = ccot_filter(A[level], B[level], 2, beta2_rel=self.reg_rel) * Z
-                delta, _ = fourier_series_peak(S, size, self.newton_iterations)
-                score = torch.fft.irfft2(S, s=size) if level == 0 else score
+                score = torch.fft.irfft2(S, s=size)
+                delta, _ = fourier_series_peak(S, size, self.newton_iterations, grid=score)
             d = d + 2**level * delta
+            spectra.insert(0, Z)
+            centres.insert(0, centre)
         psr = peak_to_sidelobe_ratio(score, 2, self.psr_exclude)
         moved = start + d
         lost = lost | ~self._inside(moved, frame) | ~(psr >= self.psr_threshold)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
-        Z = self._samples(pyramid, torch.where(lost.unsqueeze(-1), start, moved), stack=False)
+        # Training samples at the new positions: the coarsest level moved most and is extracted again; the finer
+        # levels moved by at most a few pixels and reuse their search samples, shifted in the Fourier domain (C-COT).
+        target = torch.where(lost.unsqueeze(-1), start, moved)
+        Z = []
+        for level in range(self.levels):
+            if level == self.levels - 1:
+                coarse = (target + 0.5) / 2**level - 0.5
+                Z.append(self._spectrum(extract_patches(pyramid[level], coarse, self.size)))
+            else:
+                shift = (target + 0.5) / 2**level - 0.5 - centres[level]
+                Z.append(shift_fourier(spectra[level], shift, size))
         eta = torch.where(lost, torch.zeros_like(psr), torch.full_like(psr, self.eta)).reshape(1, -1, 1, 1)
         # MOSSE's running update has the same form as the continuous filter's sample weighting.
         updated = [

@@ -1,0 +1,39 @@
+"""bench/point_tracking.py: one JSON object with every method's metrics, a plot, and the importable demo."""
+
+import json
+
+import numpy as np
+
+from bench import point_tracking
+
+
+def test_json_schema_and_plot(tmp_path, capsys):
+    png = tmp_path / "plot.png"
+    assert (
+        point_tracking.main(["--synthetic", "--frames", "5", "--points", "60", "--json", "--plot", str(png)])
+        == 0
+    )
+    result = json.loads(capsys.readouterr().out)
+    methods = result["datasets"]["synthetic"]["methods"]
+    assert set(methods) == {"ccot", "ccot_ff", "mosse", "klt"}
+    for m in methods.values():
+        assert set(m) >= {"epe_median", "epe_mean", "inlier_frac", "inlier_epe_mean", "point_frames_per_s"}
+        assert set(m["precision_at"]) == {"1", "2", "3"}
+        assert 0 <= m["precision_at"]["1"] <= m["precision_at"]["3"] == m["inlier_frac"] <= 1
+    assert png.stat().st_size > 10_000
+
+
+def test_metrics_against_hand_computed_values():
+    data = point_tracking.Dataset(
+        frames=np.zeros((3, 8, 8), np.uint8),
+        points=np.zeros((4, 2)),
+        truth=np.array([[0.0, 0.0], [1.0, 0.0], [5.0, 0.0], [9.0, 9.0]]),
+        valid=np.array([True, True, True, False]),
+    )
+    pred = np.array([[0.5, 0.0], [1.0, 2.5], [5.0, 0.0], [0.0, 0.0]])
+    lost = np.array([False, False, True, False])
+    m = point_tracking.metrics(pred, lost, data, seconds=2.0)
+    assert m["epe_median"] == 0.5 and m["epe_mean"] == 1.0  # EPEs 0.5, 2.5, 0 (lost: kept position)
+    assert m["inlier_frac"] == 2 / 3 and m["inlier_epe_mean"] == 1.5
+    assert m["precision_at"] == {"1": 1 / 3, "2": 1 / 3, "3": 2 / 3}
+    assert m["point_frames_per_s"] == 4 * 2 / 2.0
