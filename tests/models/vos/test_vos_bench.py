@@ -1,0 +1,19 @@
+"""bench/vos.py: the first-frame-copy baseline and the JSON layout on a tiny synthetic video set."""
+
+from bench.vos import load_model, parse_args, run_method
+from data.vos.datamodule import synthetic_videos
+from models.vos.metrics import evaluate_sequence
+
+
+def test_first_frame_copy_and_target_model_only() -> None:
+    videos = synthetic_videos("test", 1, n_frames=5, height=48, width=64, n_objects=2)
+    _, _, labels = videos[0]
+    copy = run_method(None, "first_frame_copy", videos)
+    ref = evaluate_sequence(labels[:1].expand_as(labels), labels)
+    assert abs(copy["jf"] - sum(o["J&F-Mean"] for o in ref.values()) / len(ref)) < 1e-12
+    model = load_model(None, mdim=8, tracker={"channels": 8, "num_aug": 2, "memory_size": 6, "init_schedule": [2],
+                                              "update_schedule": [2]})
+    tm = run_method(model, "target_model_only", videos)
+    assert set(tm) == {"jf", "j", "f", "fps", "ms_per_frame", "per_sequence"} and tm["fps"] > 0
+    assert 0 <= tm["jf"] <= 1 and set(tm["per_sequence"][videos[0][0]]) == {"1", "2"}
+    assert parse_args(["--davis", "x", "--split", "val"]).resolution == "480p"
