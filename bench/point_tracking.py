@@ -30,7 +30,7 @@ import torch
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from data.flow import read_sintel_pair, synthetic_sequence, tracks_from_flow  # noqa: E402
+from data.flow import read_sintel_sequence, synthetic_sequence, tracks_from_flow  # noqa: E402
 from models.tracking import PointTracker, good_features_to_track  # noqa: E402
 from models.tracking.klt import klt_track  # noqa: E402
 
@@ -59,12 +59,13 @@ def detect(frame: np.ndarray, n: int) -> np.ndarray:
 
 
 def sintel_dataset(folder: str | Path, n_points: int) -> Dataset:
-    """First ground-truth pair of a Sintel folder, ground truth from flow (occlusion and divergence
-    removed)."""
-    pair = read_sintel_pair(folder)
-    frames = np.stack([pair.frame0, pair.frame1]).round().clip(0, 255).astype(np.uint8)
+    """Sintel folder from its first ground-truth flow on, over every consecutive ground-truth flow (one pair
+    in ``../shared/data``), ground truth chained from flow with occluded and divergent points removed."""
+    pairs = read_sintel_sequence(folder)
+    frames = [pairs[0].frame0] + [p.frame1 for p in pairs]
+    frames = np.stack(frames).round().clip(0, 255).astype(np.uint8)
     points = detect(frames[0], n_points)
-    tracks, valid = tracks_from_flow(points, [pair.flow], [pair.bad])
+    tracks, valid = tracks_from_flow(points, [p.flow for p in pairs], [p.bad for p in pairs])
     return Dataset(frames, points, tracks[-1], valid[-1])
 
 

@@ -4,7 +4,7 @@ flow (thesis 3.4) and seeded synthetic sequences with chained ground truth.
 
 from data.flow.flo import read_flo, write_flo
 from data.flow.ground_truth import divergent_flow_mask, sample_bilinear, tracks_from_flow
-from data.flow.sintel import SintelPair, read_frame_gray, read_sintel_pair
+from data.flow.sintel import SintelPair, read_frame_gray, read_sintel_pair, read_sintel_sequence
 from data.flow.synthetic import SyntheticSequence, synthetic_sequence
 
 __all__ = [
@@ -14,6 +14,7 @@ __all__ = [
     "read_flo",
     "read_frame_gray",
     "read_sintel_pair",
+    "read_sintel_sequence",
     "sample_bilinear",
     "synthetic_sequence",
     "tracks_from_flow",

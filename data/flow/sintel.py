@@ -75,3 +75,18 @@ def read_sintel_pair(folder: str | Path, frame: int | None = None) -> SintelPair
     )
     bad |= ~np.isfinite(flow).all(axis=2)
     return SintelPair(frame0, frame1, flow, bad, f"{folder.parent.name}/{folder.name}")
+
+
+def read_sintel_sequence(folder: str | Path, max_pairs: int | None = None) -> list[SintelPair]:
+    """Consecutive pairs from the first ground-truth flow on, as long as the next ``gt/frame_XXXX.flo`` exists
+    (at most ``max_pairs``), for ground truth chained over several frames (thesis 3.4)."""
+    first = read_sintel_pair(folder)
+    pairs = [first]
+    start = min(int(p.stem.split("_")[1]) for p in Path(folder, "gt").glob("frame_*.flo"))
+    frame = start + 1
+    while (max_pairs is None or len(pairs) < max_pairs) and Path(
+        folder, "gt", f"frame_{frame:04d}.flo"
+    ).is_file():
+        pairs.append(read_sintel_pair(folder, frame))
+        frame += 1
+    return pairs

@@ -5,8 +5,8 @@ Per frame: build a 3-level pyramid; from the coarsest level down, extract every 
 estimate (one ``grid_sample`` call for all points), correlate with that level's filter, find the peak (Newton
 on the Fourier series for C-COT, grid peak plus parabola for MOSSE) and add the scaled shift. Points whose
 level-0 PSR falls below a threshold or that leave the image are flagged lost and frozen at their last
-position. Then the filters of the points still tracked learn a sample extracted at the new position, with
-weight ``eta``.
+position. Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position
+(the coarsest level extracts it again; finer levels shift their search samples in the Fourier domain).
 
 Variants: ``ccot`` (continuous filter, exponentially decaying sample weights = a sample memory), ``ccot_ff``
 (continuous filter retrained from the newest sample only, ``eta = 1``) and ``mosse``. A level-``l`` pixel
@@ -32,7 +32,7 @@ from models.dcf import (
     ccot_sample,
     ccot_update,
     continuous_label,
-    cosine_window,
+    dcf_preprocess,
     fourier_series_peak,
     gaussian_label,
     mosse_filter,
@@ -121,7 +121,6 @@ class PointTracker(nn.Module):
         self.reg_rel, self.newton_iterations = reg_rel, newton_iterations
         self.psr_threshold, self.psr_exclude = psr_threshold, psr_exclude
         shape = (patch_size, patch_size)
-        self.register_buffer("window", cosine_window(shape), persistent=False)
         if method == "mosse":
             label = torch.fft.rfft2(gaussian_label(shape, sigma)).real
         else:
@@ -130,18 +129,16 @@ class PointTracker(nn.Module):
 
     def _spectrum(self, patches: Tensor) -> Tensor:
         """Normalise, window and transform ``(P, N, N)`` patches to ``(P, N, K)`` spectra."""
-        mean = patches.mean((-2, -1), keepdim=True)
-        std = (patches - mean).square().mean((-2, -1), keepdim=True).sqrt()
-        x = (patches - mean) / (std + 1e-5) * self.window.to(patches.dtype)
+        x = dcf_preprocess(patches, 2, log=False, normalize=True, window=True)
         return torch.fft.rfft2(x) if self.method == "mosse" else ccot_sample(x, 2)
 
-    def _samples(self, pyramid: list[Tensor], positions: Tensor, stack: bool = True) -> Tensor | list[Tensor]:
-        """Spectra ``(L, P, N, K)`` (or a list of L) of the patches around ``positions`` at every level."""
+    def _samples(self, pyramid: list[Tensor], positions: Tensor) -> Tensor:
+        """Spectra ``(L, P, N, K)`` of the patches around ``positions`` at every level."""
         spectra = []
         for level, image in enumerate(pyramid):
             centres = (positions + 0.5) / 2**level - 0.5
             spectra.append(self._spectrum(extract_patches(image, centres, self.size)))
-        return torch.stack(spectra) if stack else spectra
+        return torch.stack(spectra)
 
     @staticmethod
     def _frame(frame: Tensor) -> Tensor:
@@ -243,7 +240,7 @@ class PointTracker(nn.Module):
         Returns:
             tracks ``(T, P, 2)``, lost ``(T, P)`` and PSR ``(T, P)`` (inf in frame 0).
         """
-        param = self.window
+        param = self.label
         tracks, lost, psr, state, shape = [], [], [], None, None
         for t, frame in enumerate(tqdm(frames, desc=f"track {self.method}", disable=not progress)):
             frame = torch.as_tensor(frame, dtype=param.dtype, device=param.device)

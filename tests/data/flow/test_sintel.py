@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from data.errors import InputError
-from data.flow import read_sintel_pair, write_flo
+from data.flow import read_sintel_pair, read_sintel_sequence, write_flo
 
 
 def test_alley_pair(shared_data):
@@ -27,3 +27,15 @@ def test_missing_and_mismatched(tmp_path):
     cv2.imwrite(str(tmp_path / "frame_0002.png"), np.zeros((9, 10), np.uint8))
     with pytest.raises(InputError, match="differ in size"):
         read_sintel_pair(tmp_path)
+
+
+def test_sequence_chains_consecutive_flows(tmp_path):
+    (tmp_path / "gt").mkdir()
+    for f in range(3, 7):
+        cv2.imwrite(str(tmp_path / f"frame_{f:04d}.png"), np.full((12, 16), 10 * f, np.uint8))
+    for f in (3, 4, 5):
+        write_flo(tmp_path / "gt" / f"frame_{f:04d}.flo", np.full((12, 16, 2), f, np.float32))
+    pairs = read_sintel_sequence(tmp_path)
+    assert len(pairs) == 3 and [p.flow[0, 0, 0] for p in pairs] == [3, 4, 5]
+    assert pairs[-1].frame1[0, 0] == 60
+    assert len(read_sintel_sequence(tmp_path, max_pairs=2)) == 2
