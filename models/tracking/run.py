@@ -33,6 +33,8 @@ def track_points(
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(ALL_METHODS)}")
     if not frames:
         raise InputError("no frames to track")
+    if torch.device(device).type == "cuda" and not torch.cuda.is_available():
+        raise InputError(f"device {device!r} requested but CUDA is not available")
     if (points is None) == (detect is None):
         raise InputError("give either start points or a number of points to detect")
     for t, frame in enumerate(frames):
