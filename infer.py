@@ -301,7 +301,8 @@ def _track(args: argparse.Namespace) -> int:
 
 # --- demo -------------------------------------------------------------------------------------------------------
 
-DEMOS = {"triangulation": "bench.triangulation", "point_tracking": "bench.point_tracking"}
+DEMOS = {"triangulation": "bench.triangulation", "point_tracking": "bench.point_tracking",
+         "localization": "bench.localization"}
 
 
 def _demo_arguments(p: argparse.ArgumentParser) -> None:
@@ -356,6 +357,121 @@ def _segment(args: argparse.Namespace) -> int:
     tracker = load_tracker(args.ckpt, args.onnx)
     result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames)
     print(json.dumps({"J&F": result["J&F-Mean"], "J": result["J-Mean"], "F": result["F-Mean"], "FPS": fps}))
+    return 0
+
+
+# --- build-bank / localize (horizon-profile localisation, thesis ch. 4.4) ------------------------------------
+
+
+def _build_bank_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--dem", type=Path, required=True, help="GeoTIFF or .npz DEM (any metric CRS)")
+    p.add_argument("--sea-level", type=float, default=0.0, metavar="M", help="flood the DEM at this level (m)")
+    p.add_argument("--spacing", type=float, required=True, metavar="M", help="grid spacing of the locations (m)")
+    p.add_argument("--out", type=Path, required=True, metavar="BANK", help="bank directory (resumes if unfinished)")
+    p.add_argument("--bins", type=int, default=1024, help="azimuth bins per profile (default 1024)")
+    p.add_argument("--camera-height", type=float, default=2.0, metavar="M", help="above the sea (default 2 m)")
+    p.add_argument("--max-range", type=float, default=4000.0, metavar="M", help="ray length (default 4000 m)")
+    p.add_argument("--neighbourhood", type=float, default=50.0, metavar="M",
+                   help="side of the training neighbourhood (default 50 m)")
+    p.add_argument("--frequencies", type=int, metavar="K", help="keep K frequencies (band limit; default all)")
+    p.add_argument("--bounds", type=float, nargs=4, metavar=("W", "S", "E", "N"), help="cover only this area")
+    p.add_argument("--float32", action="store_true", help="store float32 spectra (default float16)")
+    p.add_argument("--overwrite", action="store_true", help="replace another bank in --out")
+    p.add_argument("--device", default="cpu", help="torch device for ray casting and training (default cpu)")
+
+
+@command("build-bank", "Build the 1-D MOSSE filter bank over the sea of a DEM for horizon localisation.",
+         _build_bank_arguments)
+def _build_bank(args: argparse.Namespace) -> int:
+    from data.world.dem import load_dem
+    from models.horizon.filter_bank import BankSettings, build_filter_bank
+
+    dem = load_dem(args.dem, sea_level=args.sea_level)
+    settings = BankSettings(spacing=args.spacing, bins=args.bins, camera_height=args.camera_height,
+                            max_range=args.max_range, neighbourhood=args.neighbourhood,
+                            frequencies=args.frequencies)
+    bank = build_filter_bank(dem, settings, args.out, bounds=tuple(args.bounds) if args.bounds else None,
+                             storage_dtype="float32" if args.float32 else "float16", source=str(args.dem),
+                             sea_level=args.sea_level, overwrite=args.overwrite, device=args.device)
+    print(f"wrote {args.out}: {len(bank)} locations, {bank.nbytes / 1e6:.1f} MB, "
+          f"built in {bank.meta['build_seconds']:.1f} s")
+    return 0
+
+
+def _localize_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--bank", type=Path, required=True, help="filter bank directory (build-bank)")
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--images", type=Path, metavar="DIR", help="folder of tilted 360-degree panoramas")
+    source.add_argument("--profiles", type=Path, metavar="FILE",
+                        help=".npz with horizon (T, N) tan elevations [and compass_deg (T,)], or .npy (T, N)")
+    p.add_argument("--compass", type=Path, metavar="CSV", help="compass headings: image,compass_deg (or compass_deg)")
+    p.add_argument("--finder", type=Path, help="HorizonFinder checkpoint (default: newest demo training)")
+    p.add_argument("--segmenter", type=Path, help="HorizonSegmenter checkpoint (default: newest demo training)")
+    p.add_argument("--onnx", type=Path, metavar="DIR",
+                   help="use finder.onnx / segmenter.onnx (and matcher.onnx if present) from DIR instead")
+    p.add_argument("--input-width", type=int, default=512, metavar="PX", help="network input width (default 512)")
+    p.add_argument("--dem", type=Path, help="check that the bank was built for this DEM")
+    p.add_argument("--sea-level", type=float, default=0.0, metavar="M", help="sea level of --dem (m)")
+    p.add_argument("--band-deg", type=float, default=4.0, help="peak search band around the compass (default 4)")
+    p.add_argument("--out", type=Path, required=True, metavar="track.csv", help="estimated positions and headings")
+
+
+@command("localize", "Position and heading from panoramas (networks) or horizon profiles on a filter bank.",
+         _localize_arguments)
+def _localize(args: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+
+    from data.horizon.bank_io import FilterBank
+    from data.horizon.track_io import image_paths, read_compass_csv, read_profiles, write_track
+    from models.horizon.localizer import locate, network_profiles
+
+    bank = FilterBank(args.bank)
+    if args.dem:
+        from data.world.dem import load_dem
+
+        bank.check_dem(load_dem(args.dem, sea_level=args.sea_level), f"DEM {args.dem}")
+    matcher = None
+    if args.onnx and (args.onnx / "matcher.onnx").is_file():
+        from export.onnx import onnx_session, run_onnx
+
+        session = onnx_session(args.onnx / "matcher.onnx")
+
+        def matcher(*inputs):
+            return tuple(torch.from_numpy(a) for a in run_onnx(session, *inputs))
+
+    if args.profiles:
+        names, profiles, compass = read_profiles(args.profiles, args.compass)
+        profile = torch.from_numpy(profiles).float()
+    else:
+        if args.compass is None:
+            raise InputError("--images needs --compass CSV (image,compass_deg)")
+        names, compass = read_compass_csv(args.compass, need_image=True)
+        paths = image_paths(args.images, names)
+        if args.onnx:
+            finder = _horizon_network(args.onnx / "finder.onnx", "finder")
+            segmenter = _horizon_network(args.onnx / "segmenter.onnx", "segmenter")
+        else:
+            from bench.localization import find_checkpoint
+
+            finder_path = args.finder or find_checkpoint("finder")
+            segmenter_path = args.segmenter or find_checkpoint("segmenter")
+            if finder_path is None or segmenter_path is None:
+                raise InputError("no HorizonFinder/HorizonSegmenter checkpoint: pass --finder and --segmenter "
+                                 "(or --onnx DIR)")
+            finder = _horizon_network(finder_path, "finder")
+            segmenter = _horizon_network(segmenter_path, "segmenter")
+        chunks = []
+        for start in range(0, len(paths), 8):
+            image = torch.cat([_read_panorama_arg(p) for p in paths[start : start + 8]])
+            chunks.append(network_profiles(image, finder, segmenter, bank.bins, args.input_width)[0])
+        profile = torch.cat(chunks).float()
+    start = time.perf_counter()
+    result = locate(bank, profile, torch.from_numpy(np.asarray(compass)).float(), args.band_deg, matcher=matcher)
+    seconds = time.perf_counter() - start
+    write_track(args.out, names, result.xy, result.heading_deg, result.psr)
+    print(f"localised {len(names)} frames on {len(bank)} locations in {seconds:.2f} s "
+          f"({len(names) * len(bank) / seconds:.3g} locations/s); wrote {args.out}")
     return 0
 
 

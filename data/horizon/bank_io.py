@@ -1,0 +1,201 @@
+"""On-disk storage of a horizon filter bank: chunked, memory-mappable, tied to its DEM.
+
+A bank is a directory::
+
+    bank.json                 settings, grid, DEM fingerprint, chunk list, ``complete`` flag
+    chunks/filters_NNNNN.npy  (L_i, 2K) float16 (or float32): H* of L_i locations, (re, im) per frequency
+    chunks/cells_NNNNN.npy    (L_i, 2) int32 grid (row, col) of those locations
+
+Each chunk holds the sea locations of one tile of grid rows; chunks are opened with ``np.load(mmap_mode="r")``,
+so a bank of any size is matched chunk by chunk without loading it. A build interrupted part-way resumes:
+chunks already written (listed in ``bank.json``) are kept when the settings and the DEM are the same.
+The DEM fingerprint (SHA-256 of the flooded heights and the geotransform) catches a bank used with another DEM.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from data.errors import InputError
+from data.world.dem import Dem
+
+BANK_FORMAT = "dcfvision-horizon-filter-bank"
+BANK_VERSION = 1
+STORAGE_DTYPES = ("float16", "float32")
+
+
+def dem_fingerprint(dem: Dem) -> str:
+    """SHA-256 (hex) of the DEM's flooded float32 heights, shape and geotransform."""
+    digest = hashlib.sha256()
+    z = np.ascontiguousarray(dem.z, dtype=np.float32)
+    digest.update(np.asarray(z.shape, dtype=np.int64).tobytes())
+    digest.update(np.asarray([dem.x0, dem.y0, dem.cell], dtype=np.float64).tobytes())
+    digest.update(z.tobytes())
+    return digest.hexdigest()
+
+
+@dataclass
+class BankChunk:
+    """One chunk: ``filters`` (L, 2K) storage-dtype array (memory-mapped) and ``cells`` (L, 2) int32."""
+
+    filters: np.ndarray
+    cells: np.ndarray
+
+
+class BankWriter:
+    """Writes a bank directory chunk by chunk; ``meta`` holds everything but the chunk list."""
+
+    def __init__(self, path: str | Path, meta: dict, overwrite: bool = False) -> None:
+        self.path = Path(path)
+        if meta.get("storage_dtype") not in STORAGE_DTYPES:
+            raise InputError(f"storage dtype must be one of {STORAGE_DTYPES}, got {meta.get('storage_dtype')!r}")
+        self.meta = {"format": BANK_FORMAT, "version": BANK_VERSION, **meta, "chunks": [], "complete": False}
+        old = self._read_existing()
+        if old is not None:
+            same = all(old.get(k) == v for k, v in self.meta.items() if k not in ("chunks", "complete"))
+            if not same and not overwrite:
+                raise InputError(f"{self.path} holds another filter bank (other DEM or settings); "
+                                 "choose another --out or pass --overwrite")
+            if same:
+                self.meta["chunks"] = [c for c in old["chunks"] if self._chunk_ok(c)]
+        (self.path / "chunks").mkdir(parents=True, exist_ok=True)
+        self._save_meta()
+
+    def _read_existing(self) -> dict | None:
+        meta = self.path / "bank.json"
+        if not meta.is_file():
+            return None
+        try:
+            return json.loads(meta.read_text())
+        except json.JSONDecodeError:
+            return {}
+
+    def _chunk_ok(self, chunk: dict) -> bool:
+        return all((self.path / "chunks" / f"{kind}_{chunk['index']:05d}.npy").is_file()
+                   for kind in ("filters", "cells"))
+
+    def has_chunk(self, index: int) -> bool:
+        return any(c["index"] == index for c in self.meta["chunks"])
+
+    def _save_meta(self) -> None:
+        tmp = self.path / "bank.json.partial"
+        tmp.write_text(json.dumps(self.meta, indent=1))
+        os.replace(tmp, self.path / "bank.json")
+
+    def write_chunk(self, index: int, filters: np.ndarray, cells: np.ndarray) -> None:
+        """Store chunk ``index``: filters (L, 2K) (cast to the storage dtype) and grid cells (L, 2)."""
+        k2 = 2 * self.meta["settings"]["half_spectrum"]
+        if filters.ndim != 2 or filters.shape[1] != k2 or cells.shape != (filters.shape[0], 2):
+            raise InputError(f"chunk {index}: filters must be (L, {k2}) and cells (L, 2), got "
+                             f"{filters.shape}, {cells.shape}")
+        for kind, array in (("filters", filters.astype(self.meta["storage_dtype"])),
+                            ("cells", cells.astype(np.int32))):
+            final = self.path / "chunks" / f"{kind}_{index:05d}.npy"
+            tmp = final.with_name(final.stem + ".partial.npy")
+            np.save(tmp, array)
+            os.replace(tmp, final)
+        self.meta["chunks"] = [c for c in self.meta["chunks"] if c["index"] != index]
+        self.meta["chunks"].append({"index": index, "count": int(filters.shape[0])})
+        self.meta["chunks"].sort(key=lambda c: c["index"])
+        self._save_meta()
+
+    def finish(self, **extra) -> Path:
+        """Mark the bank complete (with ``extra`` fields such as the build time) and return its path."""
+        self.meta.update(extra, complete=True)
+        self._save_meta()
+        return self.path
+
+
+class FilterBank:
+    """A stored bank opened for matching (see the module docstring for the layout).
+
+    Attributes:
+        meta: the parsed ``bank.json``; ``settings``, ``grid`` and ``dem`` entries describe the bank.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        meta_path = self.path / "bank.json"
+        if not meta_path.is_file():
+            raise InputError(f"filter bank not found: {meta_path} (build one with `infer.py build-bank`)")
+        try:
+            meta = json.loads(meta_path.read_text())
+        except json.JSONDecodeError as err:
+            raise InputError(f"filter bank {meta_path} is not valid JSON: {err}") from err
+        if meta.get("format") != BANK_FORMAT or meta.get("version") != BANK_VERSION:
+            raise InputError(f"{meta_path} is not a version {BANK_VERSION} {BANK_FORMAT}")
+        if not meta.get("complete"):
+            raise InputError(f"filter bank {self.path} is incomplete (its build was interrupted; run build-bank "
+                             "again with the same arguments to resume)")
+        self.meta = meta
+        self._chunks: list[BankChunk] = []
+        for chunk in meta["chunks"]:
+            files = [self.path / "chunks" / f"{kind}_{chunk['index']:05d}.npy" for kind in ("filters", "cells")]
+            try:
+                filters, cells = (np.load(f, mmap_mode="r") for f in files)
+            except (OSError, ValueError) as err:
+                message = f"filter bank {self.path}: chunk {chunk['index']} is missing or corrupt: {err}"
+                raise InputError(message) from err
+            if filters.shape != (chunk["count"], 2 * self.half_spectrum) or cells.shape != (chunk["count"], 2):
+                raise InputError(f"filter bank {self.path}: chunk {chunk['index']} has shapes {filters.shape}, "
+                                 f"{cells.shape}, expected ({chunk['count']}, {2 * self.half_spectrum}), "
+                                 f"({chunk['count']}, 2)")
+            self._chunks.append(BankChunk(filters, cells))
+
+    @property
+    def settings(self) -> dict:
+        return self.meta["settings"]
+
+    @property
+    def bins(self) -> int:
+        return int(self.settings["bins"])
+
+    @property
+    def half_spectrum(self) -> int:
+        return int(self.settings["half_spectrum"])
+
+    @property
+    def grid(self) -> dict:
+        """``x0, y0, spacing, rows, cols`` of the location grid."""
+        return self.meta["grid"]
+
+    def __len__(self) -> int:
+        return sum(len(c.cells) for c in self._chunks)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the stored filters and cells."""
+        return sum(c.filters.nbytes + c.cells.nbytes for c in self._chunks)
+
+    def cells(self) -> np.ndarray:
+        """(L, 2) int grid (row, col) of all locations, in bank order."""
+        if not self._chunks:
+            return np.zeros((0, 2), dtype=np.int32)
+        return np.concatenate([np.asarray(c.cells) for c in self._chunks])
+
+    def locations(self) -> np.ndarray:
+        """(L, 2) map coordinates (x, y) of all locations, metres."""
+        cells = self.cells().astype(np.float64)
+        g = self.grid
+        return np.stack([g["x0"] + cells[:, 1] * g["spacing"], g["y0"] - cells[:, 0] * g["spacing"]], -1)
+
+    def chunks(self, size: int = 2**16, dtype: torch.dtype = torch.float32, device=None) -> Iterator[torch.Tensor]:
+        """Filters (L_c, 2K) of up to ``size`` locations at a time, in bank order, as tensors of ``dtype``."""
+        for chunk in self._chunks:
+            for start in range(0, len(chunk.cells), size):
+                block = np.array(chunk.filters[start : start + size])  # copy: memory maps are read-only
+                yield torch.from_numpy(block).to(device=device, dtype=dtype)
+
+    def check_dem(self, dem: Dem, name: str = "DEM") -> None:
+        """Raise ``InputError`` unless the bank was built for ``dem`` (same flooded heights and geotransform)."""
+        if dem_fingerprint(dem) != self.meta["dem"]["fingerprint"]:
+            raise InputError(f"filter bank {self.path} was built for another DEM ({self.meta['dem'].get('source')}, "
+                             f"sea level {self.meta['dem'].get('sea_level')} m), not for this {name}")

@@ -1,0 +1,201 @@
+"""Position and heading from horizon profiles or panoramas, by the filter bank (thesis ch. 4.4).
+
+panorama -> HorizonFinder (pitch, roll) -> levelling warp -> HorizonSegmenter -> horizon profile -> resampled to
+the bank's azimuth bins -> band PSR of every bank location (``models.horizon.matching``, chunk by chunk) ->
+best location, refined to sub-grid precision by a parabola through the scores of its four grid neighbours,
+and the heading of its band peak. Profiles can also come straight from a file or the classical extractor
+(``models.horizon.classical_profile``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from data.horizon.bank_io import FilterBank
+from models.horizon.cylinder import column_azimuths, interp_profile, warp_panorama
+from models.horizon.matching import band_psr, check_query
+
+
+@dataclass
+class Localization:
+    """Result for B queries.
+
+    Attributes:
+        xy: (B, 2) estimated map position (x east, y north), metres.
+        heading_deg: (B,) estimated heading of profile column 0, degrees in [0, 360).
+        psr: (B,) score of the best location.
+        index: (B,) bank index of the best location.
+        cell: (B, 2) fractional grid (row, col) after sub-grid refinement.
+        scores: (B, L) PSR of every bank location, when asked for.
+    """
+
+    xy: np.ndarray
+    heading_deg: np.ndarray
+    psr: np.ndarray
+    index: np.ndarray
+    cell: np.ndarray
+    scores: np.ndarray | None = None
+
+
+def resample_profile(profile: Tensor, bins: int) -> Tensor:
+    """Circular linear resampling of (B, W) profiles (column u at azimuth 2 pi u / W) to (B, bins)."""
+    if profile.shape[-1] == bins:
+        return profile
+    psi = column_azimuths(bins, profile.dtype, profile.device)[None].expand(profile.shape[0], bins)
+    return interp_profile(profile, psi)
+
+
+def subgrid_refine(scores: np.ndarray, cells: np.ndarray, rows: int, cols: int, best: np.ndarray) -> np.ndarray:
+    """Fractional (row, col) of the best locations from a parabola through their grid neighbours' scores.
+
+    Args:
+        scores: (B, L) location scores; cells: (L, 2) grid (row, col) of the locations.
+        rows, cols: grid size; best: (B,) index of each query's best location.
+    Returns:
+        (B, 2) fractional cells (offsets within +-0.5; none along an axis missing a neighbour or not concave).
+    """
+    lookup = np.full((rows + 2, cols + 2), -1, dtype=np.int64)
+    lookup[cells[:, 0] + 1, cells[:, 1] + 1] = np.arange(len(cells))
+    centre = cells[best].astype(np.float64)
+    queries = np.arange(len(best))
+    s0 = scores[queries, best]
+    out = centre.copy()
+    for axis in (0, 1):
+        step = np.zeros(2, dtype=np.int64)
+        step[axis] = 1
+        lo = lookup[cells[best, 0] + 1 - step[0], cells[best, 1] + 1 - step[1]]
+        hi = lookup[cells[best, 0] + 1 + step[0], cells[best, 1] + 1 + step[1]]
+        ok = (lo >= 0) & (hi >= 0)
+        s_lo = np.where(ok, scores[queries, lo.clip(0)], s0)
+        s_hi = np.where(ok, scores[queries, hi.clip(0)], s0)
+        curvature = s_lo - 2 * s0 + s_hi
+        concave = ok & (curvature < 0)
+        delta = np.where(concave, 0.5 * (s_lo - s_hi) / np.where(concave, curvature, -1.0), 0.0)
+        out[:, axis] += delta.clip(-0.5, 0.5)
+    return out
+
+
+def locate(
+    bank: FilterBank,
+    profile: Tensor,
+    heading_deg: Tensor,
+    band_deg: float = 4.0,
+    exclude: int = 11,
+    chunk: int = 8192,
+    keep_scores: bool = False,
+    device: torch.device | str | None = None,
+    matcher: Callable[[Tensor, Tensor, Tensor], tuple[Tensor, Tensor]] | None = None,
+) -> Localization:
+    """Best bank location and heading for each observed profile.
+
+    Args:
+        bank: the filter bank.
+        profile: (B, N) tan elevation profiles with N = the bank's bins, column 0 at the camera heading.
+        heading_deg: (B,) compass headings in [0, 360) degrees.
+        band_deg: peak search band around the compass heading, degrees; exclude: PSR window, bins.
+        chunk: locations matched per batched product.
+        keep_scores: also return the (B, L) PSR of all locations.
+        device: where to match (default: the profile's device).
+        matcher: replaces :func:`band_psr` (e.g. an onnxruntime session of the exported ``BandPsr``):
+            (filters (L, 2K), profile (B, N), heading_deg (B,)) -> psr (B, L), heading (B, L).
+    """
+    heading_deg = torch.as_tensor(heading_deg, dtype=profile.dtype if isinstance(profile, Tensor) else None)
+    check_query(profile, heading_deg, bank.bins)
+    if len(bank) == 0:
+        from data.errors import InputError
+
+        raise InputError(f"filter bank {bank.path} has no sea locations")
+    device = device or profile.device
+    profile, heading_deg = profile.to(device), heading_deg.to(device=device, dtype=profile.dtype)
+    threshold = float(bank.settings["norm_threshold_deg"])
+    psr, heading = [], []
+    with torch.no_grad():
+        for filters in bank.chunks(chunk, dtype=profile.dtype, device=device):
+            if matcher is None:
+                p, h = band_psr(filters, profile, heading_deg, band_deg, exclude, threshold)
+            else:
+                p, h = matcher(filters, profile, heading_deg)
+            psr.append(p.cpu())
+            heading.append(h.cpu())
+    scores = torch.cat(psr, 1).numpy()
+    headings = torch.cat(heading, 1).numpy()
+    best = scores.argmax(1)
+    grid = bank.grid
+    cells = bank.cells()
+    cell = subgrid_refine(scores, cells, grid["rows"], grid["cols"], best)
+    xy = np.stack([grid["x0"] + cell[:, 1] * grid["spacing"], grid["y0"] - cell[:, 0] * grid["spacing"]], -1)
+    queries = np.arange(len(best))
+    return Localization(xy, headings[queries, best], scores[queries, best], best, cell,
+                        scores if keep_scores else None)
+
+
+def network_profiles(
+    image: Tensor,
+    finder: Callable[[Tensor], Tensor],
+    segmenter: Callable[[Tensor], Tensor],
+    bins: int,
+    input_width: int = 512,
+) -> tuple[Tensor, Tensor, Tensor]:
+    """Horizon profiles of tilted panoramas by the networks (ch. 4.3) for matching.
+
+    Args:
+        image: (B, 3, H, W) tilted 360-degree panoramas in [0, 1], column 0 forward.
+        finder: image (B, 3, h, w) -> (B, 4) (sin, cos) of pitch and roll (network or ONNX session wrapper).
+        segmenter: levelled image (B, 3, h, w) -> (B, 2, w) tan elevation of horizon and water line.
+        bins: azimuth bins of the bank; input_width: network input width (the panorama is resized).
+    Returns:
+        profile (B, bins) tan elevation (column 0 at the heading), pitch (B,), roll (B,) rad.
+    """
+    from data.horizon.datamodule import resize_panorama
+    from models.horizon.finder import sincos_to_angles
+
+    with torch.no_grad():
+        pitch, roll = sincos_to_angles(finder(resize_panorama(image, input_width)))
+        level = warp_panorama(image, pitch.to(image.dtype), roll.to(image.dtype))
+        horizon = segmenter(resize_panorama(level, input_width))[:, 0]
+    return resample_profile(horizon.to(image.dtype), bins), pitch, roll
+
+
+class HorizonLocalizer:
+    """End to end: panoramas (via the networks) or profiles -> positions and headings on a filter bank.
+
+    Args:
+        bank: the filter bank.
+        finder, segmenter: callables as in :func:`network_profiles` (needed for :meth:`from_images` only).
+        input_width: network input width; band_deg, exclude: as in :func:`locate`.
+    """
+
+    def __init__(
+        self,
+        bank: FilterBank,
+        finder: Callable[[Tensor], Tensor] | None = None,
+        segmenter: Callable[[Tensor], Tensor] | None = None,
+        input_width: int = 512,
+        band_deg: float = 4.0,
+        exclude: int = 11,
+    ) -> None:
+        self.bank, self.finder, self.segmenter = bank, finder, segmenter
+        self.input_width, self.band_deg, self.exclude = input_width, band_deg, exclude
+
+    def from_profiles(self, profile: Tensor, heading_deg: Tensor, keep_scores: bool = False) -> Localization:
+        return locate(self.bank, profile, heading_deg, self.band_deg, self.exclude, keep_scores=keep_scores)
+
+    def from_images(self, image: Tensor, heading_deg: Tensor, keep_scores: bool = False) -> Localization:
+        if self.finder is None or self.segmenter is None:
+            from data.errors import InputError
+
+            raise InputError("localising panoramas needs the HorizonFinder and HorizonSegmenter models")
+        profile, _, _ = network_profiles(image, self.finder, self.segmenter, self.bank.bins, self.input_width)
+        return self.from_profiles(profile.float(), heading_deg, keep_scores)
+
+
+def heading_error_deg(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """Absolute circular difference of headings in degrees."""
+    d = np.remainder(np.asarray(estimate) - np.asarray(truth) + 180.0, 360.0) - 180.0
+    return np.abs(d)
+
