@@ -271,6 +271,8 @@ def _track_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output .npz with tracks (T, P, 2), lost (T, P), psr (T, P)")
     p.add_argument("--video", help="also write an overlay video (.mp4)")
     p.add_argument("--device", default="cpu", help="torch device for the DCF methods (default: cpu)")
+    p.add_argument("--threads", type=int, default=1,
+                   help="CPU threads for torch and OpenCV (default 1: fastest for many small filters)")
 
 
 @command("track", "Track points through gray frames with correlation filters (or KLT) and save the tracks.",
@@ -280,12 +282,13 @@ def _track(args: argparse.Namespace) -> int:
 
     from data.flow.frames import read_frames, read_points
     from models.tracking.overlay import write_overlay_video
-    from models.tracking.run import track_points
+    from models.tracking.run import cpu_threads, track_points
 
     frames, paths = read_frames(args.frames)
     points = read_points(args.points) if args.points else None
     start = time.perf_counter()
-    result = track_points(frames, points, args.detect, args.method, args.device, progress=True)
+    with cpu_threads(args.threads):
+        result = track_points(frames, points, args.detect, args.method, args.device, progress=True)
     seconds = time.perf_counter() - start
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     np.savez(args.out, method=args.method, frames=np.array([str(p) for p in paths]), **result)

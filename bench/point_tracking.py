@@ -23,7 +23,6 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 import torch
 
@@ -33,6 +32,7 @@ if __package__ in (None, ""):
 from data.flow import read_sintel_sequence, synthetic_sequence, tracks_from_flow  # noqa: E402
 from models.tracking import PointTracker, good_features_to_track  # noqa: E402
 from models.tracking.klt import klt_track  # noqa: E402
+from models.tracking.run import cpu_threads  # noqa: E402
 
 METHODS = ("ccot", "ccot_ff", "mosse", "klt")
 THRESHOLDS = (1, 2, 3)
@@ -191,8 +191,8 @@ def plot(result: dict, path: str | Path) -> None:
 
 def demo() -> None:
     """Small run (< 1 minute on 2 cores): synthetic sequence of 20 frames, 150 points, all methods."""
-    data = {"synthetic": synthetic_dataset(20, 150, seed=1)}
-    print(table(evaluate(data)))
+    with cpu_threads(1):
+        print(table(evaluate({"synthetic": synthetic_dataset(20, 150, seed=1)})))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -215,10 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     parser.add_argument("--plot", help="write EPE distributions and precision curves to this PNG")
     args = parser.parse_args(argv)
-    threads = torch.get_num_threads(), cv2.getNumThreads()
-    torch.set_num_threads(args.threads)
-    cv2.setNumThreads(args.threads)
-    try:
+    with cpu_threads(args.threads):
         datasets = {}
         for folder in args.sintel:
             path = Path(folder)
@@ -226,9 +223,6 @@ def main(argv: list[str] | None = None) -> int:
         if args.synthetic or not datasets:
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed)
         result = evaluate(datasets, args.methods, args.device)
-    finally:
-        torch.set_num_threads(threads[0])
-        cv2.setNumThreads(threads[1])
     if args.plot:
         plot(result, args.plot)
     for ds in result.values():
