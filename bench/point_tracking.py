@@ -1,17 +1,15 @@
 """Point-tracking benchmark (thesis fig. 3.3): C-COT (with memory and retrained every frame), MOSSE and
-OpenCV's
-pyramidal Lucas-Kanade (KLT) from the same good-features-to-track start points.
+OpenCV's pyramidal Lucas-Kanade (KLT) from the same good-features-to-track start points.
 
-Datasets: Sintel folders laid out like ``../shared/data/sintel/alley_1/clean`` (frames plus ``gt/``; the first
-pair with ground-truth flow, ground truth by the thesis protocol) and a seeded synthetic sequence with chained
-ground truth (metrics at the last frame). Per method: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not
-lost and
-EPE < 3 px), ``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px) and
-``point_frames_per_s``. Lost points keep their last position for the EPE statistics and never count as
-inliers.
+Datasets: Sintel folders laid out like ``../shared/data/sintel/alley_1/clean`` (frames plus ``gt/``; from the
+first ground-truth flow on, chained over consecutive flows, ground truth by the thesis protocol) and a seeded
+synthetic sequence with chained ground truth. Metrics at the last frame, per method: ``epe_median``,
+``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at`` (fraction not
+lost with EPE below 1, 2, 3 px) and ``point_frames_per_s``. Lost points keep their last position for the EPE
+statistics and never count as inliers.
 
-    python bench/point_tracking.py --sintel ../shared/data/sintel/alley_1/clean --synthetic --json --plot
-    F.png
+    python bench/point_tracking.py --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
+        --plot docs/figures/point_tracking.png
 """
 
 from __future__ import annotations

@@ -62,8 +62,7 @@ class SyntheticSequence:
 
     def track(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ground-truth tracks ``(T, P, 2)`` of frame-0 points ``(P, 2)`` (x, y) and validity ``(T, P)``
-        (inside
-        the image in every frame so far and an exact inverse)."""
+        (inside the image in every frame so far, and an exact inverse)."""
         points = np.asarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 2:
             raise InputError(f"points must have shape (P, 2), got {points.shape}")
@@ -122,11 +121,10 @@ def synthetic_sequence(
 
     Args:
         frames: number of frames T (>= 2). size: (H, W).
-        max_motion: amplitude of the translation velocity in px per frame (rotation, scale and non-rigid
-        motion
-            add a few px on top).
-        blur: largest Gaussian blur std (px), drawn uniformly per frame. noise: Gaussian noise std (gray
-        levels).
+        max_motion: amplitude of the translation velocity in px per frame (rotation, scale and
+            non-rigid motion add a few px on top).
+        blur: largest Gaussian blur std (px), drawn uniformly per frame.
+        noise: Gaussian noise std (gray levels).
         brightness: amplitude of the smooth relative gain change (offset changes by ``60 * brightness``).
         seed: random seed; the same arguments give the same sequence.
     """

@@ -1,5 +1,4 @@
-"""Continuous single-channel correlation filter in the style of C-COT (Danelljan et al. 2016; thesis eqs.
-3.6-3.8).
+"""Continuous single-channel correlation filter in the style of C-COT (Danelljan et al. 2016; eqs. 3.6-3.8).
 
 A sample ``x[n]`` on an odd ``N``-point grid (per axis, period ``T = N`` bins, sample ``n`` at ``t = n``)
 becomes the continuous periodic function ``J{x}(t) = sum_n x[n] b(t - n)`` (eq. 3.6) with the Keys cubic
@@ -165,13 +164,15 @@ def shift_fourier(xhat: Tensor, shift: Tensor, size: tuple[int, ...]) -> Tensor:
     return xhat * torch.polar(torch.ones_like(phase), phase)
 
 
-def _series(sr: Tensor, si: Tensor, theta: Tensor, ks: list[Tensor], w: Tensor, order: int, srsi=None):
+def _series(
+    sr: Tensor, si: Tensor, theta: Tensor, ks: list[Tensor], w: Tensor, order: int, srsi: Tensor | None = None
+):
     """Value, gradient and Hessian (if ``order`` 2) of ``sum_k w Re(s^[k] exp(i k . theta))``.
 
     ``theta`` is ``(..., ndim)`` ordered like the signal axes (first axis first); ``w`` weighs the halved last
     axis (1 at frequency 0, 2 elsewhere); ``srsi`` is ``cat([sr, si], -1)`` when already at hand (2D). 2D
-    series are evaluated separably: one batched real matrix product
-    sums the last axis for the three powers of ``kx``, then short dot products sum the first axis.
+    series are evaluated separably: one batched real matrix product sums the last axis for the three powers
+    of ``kx``, then short dot products sum the first axis.
     """
     if len(ks) == 1:
         angle = ks[0] * theta
@@ -211,10 +212,9 @@ def fourier_series_peak(
 ) -> tuple[Tensor, Tensor]:
     """Sub-bin maximum of the periodic score ``s(t) = sum_k s^[k] exp(i 2 pi k . t / N)``.
 
-    The grid maximum (inverse DFT) starts ``iterations`` Newton steps on the Fourier series (2x2
-    closed-form solve,
-    steps only where the Hessian is negative definite, at most one bin each); the grid peak is kept where the
-    refined score is lower or the refinement moved more than one bin.
+    The grid maximum (inverse DFT) starts ``iterations`` Newton steps on the Fourier series (2x2 closed-form
+    solve, steps only where the Hessian is negative definite, at most one bin each); the grid peak is kept
+    where the refined score is lower or the refinement moved more than one bin.
 
     Args:
         shat: ``(..., *K)`` complex half spectrum of the score; size: odd signal size ``S``.

@@ -1,6 +1,4 @@
-"""Peak of a sampled correlation response with sub-bin refinement (parabola through the peak and its
-neighbours).
-"""
+"""Peak of a sampled correlation response with sub-bin refinement (parabola through its neighbours)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,4 @@
-"""Peak-to-sidelobe ratio (Bolme et al. 2010): ``(g_max - mean_sl) / std_sl`` over the response minus a
-window.
+"""Peak-to-sidelobe ratio (Bolme et al. 2010): ``(g_max - mean_sl) / std_sl`` outside a peak window.
 
 The sidelobe is the whole response except a ``exclude``-wide window (per axis, circular) centred on the peak;
 the excluded values are left out of the statistics, unlike OpenCV's variants (see REFERENCE.md 3.1).

@@ -1,5 +1,4 @@
-"""Continuous C-COT filter: spline transform, interpolated samples, weights, Newton peak and sub-pixel
-shifts."""
+"""Continuous C-COT filter: spline transform, samples, weights, Newton peak and sub-pixel shifts."""
 
 import math
 
