@@ -77,6 +77,7 @@ def speed(model: FRTMSegmentation, n_frames: int = 10) -> dict:
     out = {}
     for name, (h, w) in {"240p": (240, 427), "480p": (480, 854)}.items():
         frames, labels = synthetic_video(3, n_frames=n_frames, height=h, width=w)
+        list(model.make_tracker().segment(frames[:3], {0: labels[0]}))  # warm-up (allocations, thread pools)
         tracker = model.make_tracker()
         start = time.perf_counter()
         list(tracker.segment(frames, {0: labels[0]}))
@@ -102,7 +103,8 @@ def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Te
 
 def run(args: argparse.Namespace) -> dict:
     model = load_model(args.ckpt, backbone=args.backbone)  # untrained: paper-scale decoder and tracker settings
-    result: dict = {"checkpoint": args.ckpt, "backbone": model.hparams.backbone, "methods": {}}
+    result: dict = {"checkpoint": args.ckpt, "backbone": model.hparams.backbone, "threads": torch.get_num_threads(),
+                    "methods": {}}
     if args.davis or args.synthetic or not args.speed:
         result["dataset"], videos = load_videos(args)
         for method in METHODS:
@@ -159,6 +161,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--max-frames", type=int, help="cut videos to this many frames")
     p.add_argument("--backbone", default="resnet18", help="backbone of the untrained model (no --ckpt)")
     p.add_argument("--speed", action="store_true", help="measure FPS at 240p and 480p")
+    p.add_argument("--threads", type=int, help="torch intra-op threads (1 is much faster on an oversubscribed CPU)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a J&F-vs-FPS PNG")
     return p.parse_args(argv)
@@ -191,6 +194,8 @@ def demo(train_seconds: float = 25.0) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    if args.threads:
+        torch.set_num_threads(args.threads)
     try:
         result = run(args)
     except InputError as err:
