@@ -5,9 +5,12 @@ horizons rendered from a 50 x 50 m neighbourhood around it, with a Gaussian labe
 in the world frame: bin j looks at azimuth ``2 pi j / N`` clockwise from north.
 
 Sample sharing: the training horizons of a location are the horizons of the grid points in its neighbourhood
-(every ``sample_step`` metres, so 3 x 3 samples at offsets -25, 0, 25 m by default). Each grid point is ray cast
-once and serves up to M filters, so building costs one ray cast per location instead of M. The grid is built in
-tiles of whole grid rows plus a halo of neighbourhood rows, one stored chunk per tile.
+(every ``sample_step`` metres: 5 x 5 samples at offsets -20 .. 20 m by default), so each grid point is ray cast
+once and serves up to M filters: building costs one ray cast per location instead of M. The samples are weighted
+by a Gaussian of their distance (``sample_sigma``, 5 m by default; None = the plain MOSSE sum): with equal
+weights the filters of neighbouring locations become nearly identical and the position blurs (measured in
+docs/results.md). The grid is built in tiles of whole grid rows plus a halo of neighbourhood rows, one stored
+chunk per tile.
 
 Profile normalisation (:func:`profile_normalize`): elevations in degrees, divided by their maximum when that
 exceeds ``norm_threshold_deg`` (the thesis's rule, "divide by the maximum if some h > 1.0"; its units are not
@@ -260,6 +263,7 @@ def build_filter_bank(
     heights = torch.from_numpy(np.ascontiguousarray(dem.z, dtype=np.float32)).to(device)
     ext_cols = np.arange(-halo, grid.cols + halo)
     start = time.perf_counter()
+    rendered = 0
     tiles = list(range(0, grid.rows, tile_rows))
     with torch.no_grad():
         for index, r0 in enumerate(tqdm(tiles, desc="filter bank", unit="tile", disable=not progress)):
@@ -271,10 +275,11 @@ def build_filter_bank(
             rr, cc = np.meshgrid(rows, ext_cols, indexing="ij")
             positions = torch.from_numpy(grid.xy(rr[sea], cc[sea])).to(heights)
             profiles = torch.zeros(*sea.shape, settings.bins, dtype=heights.dtype, device=heights.device)
+            rendered += len(positions)
             if len(positions):
-                rendered = virtual_horizon(heights, dem.x0, dem.y0, dem.cell, positions, settings.camera_height,
+                horizons = virtual_horizon(heights, dem.x0, dem.y0, dem.cell, positions, settings.camera_height,
                                            settings.bins, settings.max_range, settings.ray_step or dem.cell)
-                profiles[torch.from_numpy(sea).to(heights.device)] = rendered.horizon
+                profiles[torch.from_numpy(sea).to(heights.device)] = horizons.horizon
             inner = np.zeros_like(sea)
             inner[halo : halo + r1 - r0, halo : halo + grid.cols] = True
             li, lj = np.nonzero(sea & inner)
@@ -290,5 +295,5 @@ def build_filter_bank(
             k2 = 2 * settings.half_spectrum
             writer.write_chunk(index, np.concatenate(filters) if filters else np.zeros((0, k2), np.float32),
                                np.stack([li - halo + r0, lj - halo], -1))
-    writer.finish(build_seconds=time.perf_counter() - start)
+    writer.finish(build_seconds=time.perf_counter() - start, rendered_horizons=rendered)
     return FilterBank(out)
