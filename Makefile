@@ -24,8 +24,13 @@ lint: $(STAMP)
 test: lint
 	$(PY) -m pytest
 
+# Full benchmarks (minutes each); real data is read from $(SHARED) when present.
+SHARED ?= ../shared/data
 bench: $(STAMP)
-	$(PY) bench/triangulation.py --json --plot docs/figures/triangulation.png
+	mkdir -p docs/figures
+	$(PY) bench/triangulation.py --points 1000000 --compile --json --plot docs/figures/triangulation.png
+	$(PY) bench/point_tracking.py --sintel $(SHARED)/sintel/alley_1/clean $(SHARED)/sintel/alley_1/final \
+		--synthetic --json --plot docs/figures/point_tracking.png
 
 clean:
 	rm -rf $(VENV) build *.egg-info
