@@ -367,7 +367,8 @@ def _segment(args: argparse.Namespace) -> int:
 
 
 def _build_bank_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--dem", type=Path, required=True, help="GeoTIFF or .npz DEM (any metric CRS)")
+    p.add_argument("--dem", type=Path, required=True,
+                   help="GeoTIFF or .npz DEM (a geographic GeoTIFF is reprojected to its UTM zone)")
     p.add_argument("--sea-level", type=float, default=0.0, metavar="M", help="flood the DEM at this level (m)")
     p.add_argument("--spacing", type=float, required=True, metavar="M", help="grid spacing of the locations (m)")
     p.add_argument("--out", type=Path, required=True, metavar="BANK", help="bank directory (resumes if unfinished)")
@@ -386,10 +387,10 @@ def _build_bank_arguments(p: argparse.ArgumentParser) -> None:
 @command("build-bank", "Build the 1-D MOSSE filter bank over the sea of a DEM for horizon localisation.",
          _build_bank_arguments)
 def _build_bank(args: argparse.Namespace) -> int:
-    from data.world.dem import load_dem
+    from data.horizon.metric_dem import load_metric_dem
     from models.horizon.filter_bank import BankSettings, build_filter_bank
 
-    dem = load_dem(args.dem, sea_level=args.sea_level)
+    dem = load_metric_dem(args.dem, sea_level=args.sea_level)
     settings = BankSettings(spacing=args.spacing, bins=args.bins, camera_height=args.camera_height,
                             max_range=args.max_range, neighbourhood=args.neighbourhood,
                             frequencies=args.frequencies)
@@ -431,9 +432,9 @@ def _localize(args: argparse.Namespace) -> int:
 
     bank = FilterBank(args.bank)
     if args.dem:
-        from data.world.dem import load_dem
+        from data.horizon.metric_dem import load_metric_dem
 
-        bank.check_dem(load_dem(args.dem, sea_level=args.sea_level), f"DEM {args.dem}")
+        bank.check_dem(load_metric_dem(args.dem, sea_level=args.sea_level), f"DEM {args.dem}")
     matcher = None
     if args.onnx and (args.onnx / "matcher.onnx").is_file():
         from export.onnx import onnx_session, run_onnx

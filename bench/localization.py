@@ -32,7 +32,8 @@ import torch
 
 from data.errors import InputError
 from data.horizon.bank_io import FilterBank
-from data.world.dem import Dem, generate_archipelago, load_dem
+from data.horizon.metric_dem import load_metric_dem
+from data.world.dem import Dem, generate_archipelago
 from data.world.raycast import VirtualHorizon, virtual_horizon
 from models.horizon.cylinder import column_azimuths, interp_profile
 from models.horizon.filter_bank import BankSettings, build_filter_bank, profile_normalize
@@ -51,8 +52,8 @@ def trajectory(dem: Dem, count: int = 100, step_m: float = 4.0, shore_m: tuple[f
                camera_height: float = 2.0, margin_m: float = 600.0, seed: int = 0) -> np.ndarray:
     """One boat track of ``count`` poses (x, y, camera height, heading, pitch, roll) over water.
 
-    A smooth random walk of ``step_m`` per frame, kept ``shore_m`` from land and ``margin_m`` from the DEM
-    edges; heading = course plus a random mount offset; pitch/roll of a few degrees (wave motion).
+    A smooth random walk (4 degree turns) of ``step_m`` per frame, kept ``shore_m`` from land and ``margin_m``
+    from the DEM edges; heading = course plus a random mount offset; pitch/roll of a few degrees (wave motion).
     """
     import cv2
 
@@ -81,7 +82,7 @@ def trajectory(dem: Dem, count: int = 100, step_m: float = 4.0, shore_m: tuple[f
             tilt = np.radians(2.0) * np.sin(len(poses) / 5.0 + np.array([0.0, 1.3]))
             poses.append([p[0], p[1], camera_height, heading, tilt[0], tilt[1]])
             for _ in range(24):
-                turn = course + rng.normal(0, math.radians(10))
+                turn = course + rng.normal(0, math.radians(4))
                 nxt = p + step_m * np.array([math.sin(turn), math.cos(turn)])
                 if ok(nxt):
                     course, p = turn, nxt
@@ -109,7 +110,7 @@ def render(dem: Dem, poses: np.ndarray, width: int, height: int, max_range: floa
     """(B, 3, H, W) rendered tilted panoramas (clean conditions)."""
     from data.world.render import Appearance, render_panorama
 
-    caster = VirtualHorizon(dem, bins=2 * width, max_range=max_range, step=dem.cell)
+    caster = VirtualHorizon(dem, bins=width, max_range=max_range, step=dem.cell)
     gen = torch.Generator().manual_seed(seed)
     images = []
     for start in range(0, len(poses), 8):
@@ -201,15 +202,17 @@ def evaluate(bank: FilterBank, profile: torch.Tensor, poses: np.ndarray, compass
 def run(dem: Dem | None = None, spacing: float = 5.0, count: int = 100, bins: int = 512, max_range: float = 1500.0,
         width: int = 2048, height: int = 256, kinds: tuple[str, ...] = KINDS, bank_dir: Path | None = None,
         finder: Path | None = None, segmenter: Path | None = None, speed_locations: int = 2**17,
-        settings: dict | None = None, seed: int = 0, progress: bool = True) -> dict:
-    """Build the bank over the trajectory's area and evaluate every input kind; returns the report and extras."""
+        settings: dict | None = None, margin: float = 100.0, seed: int = 0, progress: bool = True) -> dict:
+    """Build the bank over the trajectory's bounding box plus ``margin`` metres and evaluate every input kind;
+    returns the report and extras (DEM, poses, bank, per-kind ``Localization``)."""
     import tempfile
 
     dem = dem or synthetic_dem()
-    poses = trajectory(dem, count, seed=seed)
+    west, south, east, north = dem.bounds
+    edge = min(max_range / 2.5, 0.25 * min(east - west, north - south))  # keep the rays' land in the DEM
+    poses = trajectory(dem, count, margin_m=edge, seed=seed)
     rng = np.random.default_rng(seed + 1)
     compass = np.remainder(np.degrees(poses[:, 3]) + rng.normal(0, 1.0, len(poses)), 360.0)
-    margin = 40.0
     bounds = (poses[:, 0].min() - margin, poses[:, 1].min() - margin,
               poses[:, 0].max() + margin, poses[:, 1].max() + margin)
     bank_settings = BankSettings(**{"spacing": spacing, "bins": bins, "max_range": max_range, **(settings or {})})
@@ -270,7 +273,8 @@ def plot(outcome: dict, path: str | Path) -> None:
     extent = (dem.x0 + max(c0, 0) * dem.cell, dem.x0 + c1 * dem.cell, dem.y0 - r1 * dem.cell,
               dem.y0 - max(r0, 0) * dem.cell)
     for ax in axes:
-        ax.imshow(crop, cmap="gray", extent=extent, origin="upper")
+        ax.imshow(np.where(crop > 0, crop, np.nan), cmap="Greens", extent=extent, origin="upper", vmin=-10)
+        ax.set_facecolor("#9ecae1")
     score = np.full((grid["rows"], grid["cols"]), np.nan)
     score[cells[:, 0], cells[:, 1]] = first.scores[0]
     gx0, gy0, s = grid["x0"], grid["y0"], grid["spacing"]
@@ -322,9 +326,10 @@ def _table(report: dict) -> str:
 
 def demo() -> None:
     """Small version (< 1 minute on 2 cores): 1.5 km map, 10 m grid, 256 bins, 40 poses, ground-truth profiles."""
+    print("horizon localisation: filter bank around a 40-pose boat track, ground-truth profiles + 0.05 deg noise")
     dem = generate_archipelago(size_m=1500.0, cell=5.0, seed=7, feature_scale_m=500.0, land_fraction=0.15)
     outcome = run(dem, spacing=10.0, count=40, bins=256, max_range=700.0, kinds=("gt_profiles",),
-                  speed_locations=2**15, settings={"neighbourhood": 0.0}, progress=False)
+                  speed_locations=2**15, margin=50.0, progress=False)
     print(_table(outcome["report"]))
 
 
@@ -341,16 +346,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kinds", nargs="+", choices=KINDS, default=list(KINDS))
     parser.add_argument("--finder", type=Path, help="HorizonFinder checkpoint (default: newest demo one)")
     parser.add_argument("--segmenter", type=Path, help="HorizonSegmenter checkpoint (default: newest demo one)")
+    parser.add_argument("--margin", type=float, default=100.0, metavar="M",
+                        help="the bank covers the trajectory's box plus this margin (default 100 m)")
     parser.add_argument("--bank", type=Path, help="keep the bank in this directory")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", type=Path, metavar="FILE.png", help="draw the response map and the trajectory")
     args = parser.parse_args(argv)
     try:
-        dem = load_dem(args.dem, sea_level=args.sea_level) if args.dem else None
+        dem = load_metric_dem(args.dem, sea_level=args.sea_level) if args.dem else None
         settings = {} if args.neighbourhood is None else {"neighbourhood": args.neighbourhood}
         outcome = run(dem, args.spacing, args.poses, args.bins, args.max_range, kinds=tuple(args.kinds),
                       bank_dir=args.bank, finder=args.finder, segmenter=args.segmenter, settings=settings,
-                      progress=not args.json)
+                      margin=args.margin, progress=not args.json)
     except InputError as err:
         sys.stderr.write(f"bench/localization.py: error: {err}\n")
         return 2
