@@ -213,6 +213,8 @@ def format_table(report: dict) -> str:
 
 def demo() -> None:
     """Small side-by-side run for ``make demo``: the synthetic cube, then the real reconstruction when present."""
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
     report, _ = run(points=20_000, repeats=2, pycolmap_points=2000, methods=DEFAULT_METHODS)
     print(f"Triangulation, synthetic cube: {report['config']['points']} points, sigma = 1 px")
     print(format_table(report))
@@ -240,6 +242,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--methods", nargs="+", choices=ALL_METHODS, default=list(DEFAULT_METHODS))
     parser.add_argument("--compile", action="store_true", help="also time torch.compile'd dogleg (dogleg_compiled)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--threads", type=int, default=1,
+                        help="CPU threads for torch and OpenCV (default 1: OpenCV's DLT is single-threaded)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", type=Path, help="write error distributions to this PNG")
     args = parser.parse_args(argv)
@@ -247,6 +251,8 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--points must be positive")
     if args.device.startswith("cuda") and not torch.cuda.is_available():
         parser.error("--device cuda: no CUDA device is available")
+    torch.set_num_threads(args.threads)
+    cv2.setNumThreads(args.threads)
     methods = tuple(args.methods) + (("dogleg_compiled",) if args.compile else ())
     report, errors = run(args.points, args.noise, args.device, args.dtype, args.seed, args.repeats,
                          args.pycolmap_points, methods)
