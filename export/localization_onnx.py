@@ -35,6 +35,7 @@ def export_matcher(path: str | Path, bins: int = 1024, frequencies: int | None =
     frequencies = frequencies or bins // 2 + 1
     if not 2 <= frequencies <= bins // 2 + 1:
         raise InputError(f"--frequencies must be in [2, {bins // 2 + 1}], got {frequencies}")
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     model = BandPsr(band_deg, exclude, threshold_deg).eval()
     locations, batch = torch.export.Dim("locations", min=2), torch.export.Dim("batch", min=1)
     shapes = {"filters": {0: locations}, "profile": {0: batch}, "heading_deg": {0: batch}}

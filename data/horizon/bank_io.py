@@ -194,6 +194,20 @@ class FilterBank:
                 block = np.array(chunk.filters[start : start + size])  # copy: memory maps are read-only
                 yield torch.from_numpy(block).to(device=device, dtype=dtype)
 
+    def blocks(
+        self, size: int = 8192, dtype: torch.dtype = torch.float32, device=None, rows: tuple[int, int] | None = None
+    ) -> Iterator[tuple[int, np.ndarray, torch.Tensor]]:
+        """``(offset, cells (L_c, 2), filters (L_c, 2K))`` blocks in bank order; with ``rows = (lo, hi)`` only the
+        blocks holding a grid row in ``[lo, hi]`` are read (a search window)."""
+        offset = 0
+        for chunk in self._chunks:
+            for start in range(0, len(chunk.cells), size):
+                cells = np.asarray(chunk.cells[start : start + size])
+                if rows is None or (cells[:, 0].max() >= rows[0] and cells[:, 0].min() <= rows[1]):
+                    block = np.array(chunk.filters[start : start + size])  # copy: memory maps are read-only
+                    yield offset + start, cells, torch.from_numpy(block).to(device=device, dtype=dtype)
+            offset += len(chunk.cells)
+
     def check_dem(self, dem: Dem, name: str = "DEM") -> None:
         """Raise ``InputError`` unless the bank was built for ``dem`` (same flooded heights and geotransform)."""
         if dem_fingerprint(dem) != self.meta["dem"]["fingerprint"]:

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from data.errors import InputError
 from data.horizon.bank_io import FilterBank
 from models.horizon.cylinder import column_azimuths, interp_profile, warp_panorama
 from models.horizon.matching import band_psr, check_query
@@ -54,7 +55,7 @@ def subgrid_refine(scores: np.ndarray, cells: np.ndarray, rows: int, cols: int, 
     """Fractional (row, col) of the best locations from a parabola through their grid neighbours' scores.
 
     Args:
-        scores: (B, L) location scores; cells: (L, 2) grid (row, col) of the locations.
+        scores: (B, L) location scores (-inf = not a candidate); cells: (L, 2) grid (row, col) of the locations.
         rows, cols: grid size; best: (B,) index of each query's best location.
     Returns:
         (B, 2) fractional cells (offsets within +-0.5; none along an axis missing a neighbour or not concave).
@@ -70,9 +71,9 @@ def subgrid_refine(scores: np.ndarray, cells: np.ndarray, rows: int, cols: int, 
         step[axis] = 1
         lo = lookup[cells[best, 0] + 1 - step[0], cells[best, 1] + 1 - step[1]]
         hi = lookup[cells[best, 0] + 1 + step[0], cells[best, 1] + 1 + step[1]]
-        ok = (lo >= 0) & (hi >= 0)
-        s_lo = np.where(ok, scores[queries, lo.clip(0)], s0)
-        s_hi = np.where(ok, scores[queries, hi.clip(0)], s0)
+        s_lo, s_hi = scores[queries, lo.clip(0)], scores[queries, hi.clip(0)]
+        ok = (lo >= 0) & (hi >= 0) & np.isfinite(s_lo) & np.isfinite(s_hi)  # outside a search window: -inf
+        s_lo, s_hi = np.where(ok, s_lo, s0), np.where(ok, s_hi, s0)
         curvature = s_lo - 2 * s0 + s_hi
         concave = ok & (curvature < 0)
         delta = np.where(concave, 0.5 * (s_lo - s_hi) / np.where(concave, curvature, -1.0), 0.0)
@@ -90,6 +91,8 @@ def locate(
     keep_scores: bool = False,
     device: torch.device | str | None = None,
     matcher: Callable[[Tensor, Tensor, Tensor], tuple[Tensor, Tensor]] | None = None,
+    prior_xy: np.ndarray | None = None,
+    radius: float = 500.0,
 ) -> Localization:
     """Best bank location and heading for each observed profile.
 
@@ -103,29 +106,46 @@ def locate(
         device: where to match (default: the profile's device).
         matcher: replaces :func:`band_psr` (e.g. an onnxruntime session of the exported ``BandPsr``):
             (filters (L, 2K), profile (B, N), heading_deg (B,)) -> psr (B, L), heading (B, L).
+        prior_xy: (B, 2) map positions (e.g. the previous fixes): only locations within ``radius`` metres of
+            a query's prior are candidates for it, and only the bank blocks near the priors are read.
     """
     heading_deg = torch.as_tensor(heading_deg, dtype=profile.dtype if isinstance(profile, Tensor) else None)
     check_query(profile, heading_deg, bank.bins)
     if len(bank) == 0:
-        from data.errors import InputError
-
         raise InputError(f"filter bank {bank.path} has no sea locations")
     device = device or profile.device
     profile, heading_deg = profile.to(device), heading_deg.to(device=device, dtype=profile.dtype)
     threshold = float(bank.settings["norm_threshold_deg"])
-    psr, heading = [], []
+    grid = bank.grid
+    total = len(bank)
+    scores = np.full((profile.shape[0], total), -np.inf, dtype=np.float32)
+    headings = np.zeros((profile.shape[0], total), dtype=np.float32)
+    rows = None
+    if prior_xy is not None:
+        prior_xy = np.asarray(prior_xy, dtype=np.float64).reshape(-1, 2)
+        if prior_xy.shape[0] != profile.shape[0] or not radius > 0:
+            raise InputError(f"prior_xy must be (B, 2) = ({profile.shape[0]}, 2) and radius > 0, got "
+                             f"{prior_xy.shape}, {radius}")
+        prior_rows = (grid["y0"] - prior_xy[:, 1]) / grid["spacing"]
+        reach = radius / grid["spacing"]
+        rows = (int(np.floor(prior_rows.min() - reach)), int(np.ceil(prior_rows.max() + reach)))
     with torch.no_grad():
-        for filters in bank.chunks(chunk, dtype=profile.dtype, device=device):
+        for offset, cells, filters in bank.blocks(chunk, dtype=profile.dtype, device=device, rows=rows):
             if matcher is None:
                 p, h = band_psr(filters, profile, heading_deg, band_deg, exclude, threshold)
             else:
                 p, h = matcher(filters, profile, heading_deg)
-            psr.append(p.cpu())
-            heading.append(h.cpu())
-    scores = torch.cat(psr, 1).numpy()
-    headings = torch.cat(heading, 1).numpy()
+            p = p.cpu().numpy()
+            if prior_xy is not None:
+                spacing = grid["spacing"]
+                xy = np.stack([grid["x0"] + cells[:, 1] * spacing, grid["y0"] - cells[:, 0] * spacing], -1)
+                far = np.linalg.norm(xy[None] - prior_xy[:, None], axis=-1) > radius
+                p = np.where(far, -np.inf, p)
+            scores[:, offset : offset + len(cells)] = p
+            headings[:, offset : offset + len(cells)] = h.cpu().numpy()
+    if not np.isfinite(scores.max(1)).all():
+        raise InputError(f"no bank location lies within {radius} m of a prior position")
     best = scores.argmax(1)
-    grid = bank.grid
     cells = bank.cells()
     cell = subgrid_refine(scores, cells, grid["rows"], grid["cols"], best)
     xy = np.stack([grid["x0"] + cell[:, 1] * grid["spacing"], grid["y0"] - cell[:, 0] * grid["spacing"]], -1)
@@ -187,8 +207,6 @@ class HorizonLocalizer:
 
     def from_images(self, image: Tensor, heading_deg: Tensor, keep_scores: bool = False) -> Localization:
         if self.finder is None or self.segmenter is None:
-            from data.errors import InputError
-
             raise InputError("localising panoramas needs the HorizonFinder and HorizonSegmenter models")
         profile, _, _ = network_profiles(image, self.finder, self.segmenter, self.bank.bins, self.input_width)
         return self.from_profiles(profile.float(), heading_deg, keep_scores)

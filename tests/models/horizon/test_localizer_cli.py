@@ -50,6 +50,16 @@ def test_localize_profiles_file(world, tmp_path):
     assert np.linalg.norm(got - xy, axis=1).max() <= 10.0
     got_heading = np.array([float(r["heading_deg"]) for r in rows])
     assert np.abs((got_heading - heading + 180) % 360 - 180).max() < 360 / 256
+    # the same with the exported matching step in onnxruntime
+    from export.localization_onnx import export_matcher
+
+    export_matcher(tmp_path / "onnx" / "matcher.onnx", bins=256)
+    assert main(["localize", "--bank", str(root / "bank"), "--profiles", str(tmp_path / "p.npz"),
+                 "--onnx", str(tmp_path / "onnx"), "--out", str(tmp_path / "track_onnx.csv")]) == 0
+    with (tmp_path / "track_onnx.csv").open() as f:
+        onnx_rows = list(csv.DictReader(f))
+    for a, b in zip(rows, onnx_rows, strict=True):
+        assert abs(float(a["x"]) - float(b["x"])) < 1e-2 and abs(float(a["y"]) - float(b["y"])) < 1e-2
 
 
 def test_localize_bad_input(world, tmp_path, capsys):

@@ -80,6 +80,9 @@ def test_subgrid_refine_recovers_quadratic_peak():
     edge = np.stack([10 - (cells[:, 0] - 0.2) ** 2 - (cells[:, 1] - 5.3) ** 2])
     out = subgrid_refine(edge, cells, rows, cols, edge.argmax(1))
     np.testing.assert_allclose(out, [[0.0, 5.3]], atol=1e-12)
+    # neighbours outside a search window (-inf) count as missing
+    edge[0, (cells[:, 1] == 6)] = -np.inf
+    np.testing.assert_allclose(subgrid_refine(edge, cells, rows, cols, edge.argmax(1)), [[0.0, 5.0]], atol=1e-12)
 
 
 def test_profile_normalize_rule():
@@ -129,6 +132,25 @@ def test_own_virtual_horizon_returns_its_location_and_heading(small_bank):
     np.testing.assert_array_equal(result.index, pick)
     assert np.abs((result.heading_deg - heading.numpy() + 180) % 360 - 180).max() < 0.5 * 360 / settings.bins
     assert np.linalg.norm(result.xy - locations[pick], axis=1).max() <= settings.spacing / 2
+
+
+def test_prior_window_restricts_the_search(small_bank):
+    dem, settings, bank = small_bank
+    locations = bank.locations()
+    pick = np.array([3, len(locations) // 2, len(locations) - 4])
+    heading = torch.tensor([20.0, 200.0, 300.0])
+    profile = _own_queries(dem, settings, locations[pick], heading)
+    near = locate(bank, profile, heading, prior_xy=locations[pick] + 30.0, radius=60.0, keep_scores=True)
+    np.testing.assert_array_equal(near.index, pick)
+    distance = np.linalg.norm(locations[None] - (locations[pick] + 30.0)[:, None], axis=-1)
+    assert np.isneginf(near.scores[distance > 60.0]).all() and np.isfinite(near.scores[distance <= 60.0]).all()
+    gap = np.linalg.norm(locations[None] - locations[pick][:, None], axis=-1)
+    far_prior = locations[np.argmax((gap > 100) & (gap < 200), axis=1)]  # another sea location 100-200 m away
+    assert (np.linalg.norm(far_prior - locations[pick], axis=1) > 100).all()
+    far = locate(bank, profile, heading, prior_xy=far_prior, radius=40.0)
+    assert (np.linalg.norm(locations[far.index] - far_prior, axis=1) <= 40.0).all()
+    with pytest.raises(InputError, match="no bank location lies within"):
+        locate(bank, profile, heading, prior_xy=locations[pick] + 1e5, radius=10.0)
 
 
 def test_bad_queries_raise_clear_errors(small_bank):
