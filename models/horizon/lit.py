@@ -207,6 +207,37 @@ class HorizonSegmenterSystem(_HorizonSystem):
         self.log_dict(_summaries(errors, failures, r["degraded"], "test"))
 
 
+def plot_loss_curves(metrics: str | Path, path: str | Path, title: str = "") -> bool:
+    """Plot the ``train/loss`` and ``val/loss`` columns of a CSVLogger ``metrics.csv`` to a PNG; False if none."""
+    curves: dict[str, tuple[list[float], list[float]]] = {}
+    with Path(metrics).open() as f:
+        for row in csv.DictReader(f):
+            for key in ("train/loss", "val/loss"):
+                if row.get(key):
+                    steps, values = curves.setdefault(key, ([], []))
+                    steps.append(float(row["step"]))
+                    values.append(float(row[key]))
+    if not curves:
+        return False
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    for key, (steps, values) in curves.items():
+        ax.plot(steps, values, label=key, alpha=0.6 if key.startswith("train") else 1.0)
+    ax.set_xlabel("step")
+    ax.set_ylabel("loss")
+    ax.set_yscale("log")
+    ax.set_title(title)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
 class LossCurves(Callback):
     """Draw the logged training and validation losses (CSVLogger ``metrics.csv``) to a PNG when fitting ends.
 
@@ -222,33 +253,7 @@ class LossCurves(Callback):
         if trainer.logger is None or trainer.logger.log_dir is None:
             return
         metrics = Path(trainer.logger.log_dir) / "metrics.csv"
-        if not metrics.is_file():
-            return
-        curves: dict[str, tuple[list[float], list[float]]] = {}
-        with metrics.open() as f:
-            for row in csv.DictReader(f):
-                for key in ("train/loss_epoch", "train/loss_step", "val/loss"):
-                    if row.get(key):
-                        steps, values = curves.setdefault(key, ([], []))
-                        steps.append(float(row["step"]))
-                        values.append(float(row[key]))
-        if not curves:
-            return
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(6, 3.6))
-        for key, (steps, values) in curves.items():
-            ax.plot(steps, values, label=key, alpha=0.5 if key.endswith("step") else 1.0)
-        ax.set_xlabel("step")
-        ax.set_ylabel("loss")
-        ax.set_yscale("log")
-        ax.set_title(type(pl_module).__name__)
-        ax.legend()
-        fig.tight_layout()
         path = Path(self.path)
         path = path if path.is_absolute() else Path(trainer.logger.log_dir) / path
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        if metrics.is_file():
+            plot_loss_curves(metrics, path, type(pl_module).__name__)
