@@ -417,6 +417,8 @@ def _localize_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dem", type=Path, help="check that the bank was built for this DEM")
     p.add_argument("--sea-level", type=float, default=0.0, metavar="M", help="sea level of --dem (m)")
     p.add_argument("--band-deg", type=float, default=4.0, help="peak search band around the compass (default 4)")
+    p.add_argument("--drop-harmonics", type=int, default=0, metavar="H",
+                   help="ignore the profiles' harmonics 1..H (1 removes the sinusoid of a levelling error)")
     p.add_argument("--out", type=Path, required=True, metavar="track.csv", help="estimated positions and headings")
 
 
@@ -471,7 +473,10 @@ def _localize(args: argparse.Namespace) -> int:
             chunks.append(network_profiles(image, finder, segmenter, bank.bins, args.input_width)[0])
         profile = torch.cat(chunks).float()
     start = time.perf_counter()
-    result = locate(bank, profile, torch.from_numpy(np.asarray(compass)).float(), args.band_deg, matcher=matcher)
+    if args.drop_harmonics and matcher is not None:
+        raise InputError("--drop-harmonics needs the PyTorch matcher (export matcher.onnx with --drop-harmonics)")
+    result = locate(bank, profile, torch.from_numpy(np.asarray(compass)).float(), args.band_deg, matcher=matcher,
+                    drop_harmonics=args.drop_harmonics)
     seconds = time.perf_counter() - start
     write_track(args.out, names, result.xy, result.heading_deg, result.psr)
     print(f"localised {len(names)} frames on {len(bank)} locations in {seconds:.2f} s "

@@ -30,13 +30,13 @@ def example_inputs(bins: int, frequencies: int, locations: int = 64, batch: int 
 
 
 def export_matcher(path: str | Path, bins: int = 1024, frequencies: int | None = None, band_deg: float = 4.0,
-                   exclude: int = 11, threshold_deg: float = 1.0) -> Path:
+                   exclude: int = 11, threshold_deg: float = 1.0, drop_harmonics: int = 0) -> Path:
     """Export :class:`BandPsr` for profiles of ``bins`` bins and banks of ``frequencies`` stored frequencies."""
     frequencies = frequencies or bins // 2 + 1
     if not 2 <= frequencies <= bins // 2 + 1:
         raise InputError(f"--frequencies must be in [2, {bins // 2 + 1}], got {frequencies}")
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    model = BandPsr(band_deg, exclude, threshold_deg).eval()
+    model = BandPsr(band_deg, exclude, threshold_deg, drop_harmonics).eval()
     locations, batch = torch.export.Dim("locations", min=2), torch.export.Dim("batch", min=1)
     shapes = {"filters": {0: locations}, "profile": {0: batch}, "heading_deg": {0: batch}}
     return export_onnx(model, example_inputs(bins, frequencies), path, ("filters", "profile", "heading_deg"),
@@ -59,10 +59,12 @@ def main() -> None:
     parser.add_argument("--band-deg", type=float, default=4.0)
     parser.add_argument("--exclude", type=int, default=11)
     parser.add_argument("--threshold-deg", type=float, default=1.0, help="profile normalisation threshold")
+    parser.add_argument("--drop-harmonics", type=int, default=0, help="ignore the profiles' harmonics 1..H")
     args = parser.parse_args()
-    path = export_matcher(args.out, args.bins, args.frequencies, args.band_deg, args.exclude, args.threshold_deg)
+    path = export_matcher(args.out, args.bins, args.frequencies, args.band_deg, args.exclude, args.threshold_deg,
+                          args.drop_harmonics)
     inputs = example_inputs(args.bins, args.frequencies or args.bins // 2 + 1, locations=500, batch=3, seed=1)
-    error = parity(path, BandPsr(args.band_deg, args.exclude, args.threshold_deg), inputs)
+    error = parity(path, BandPsr(args.band_deg, args.exclude, args.threshold_deg, args.drop_harmonics), inputs)
     print(f"wrote {path}; onnxruntime vs PyTorch PSR difference (relative to the largest PSR) {error:.2e}")
 
 

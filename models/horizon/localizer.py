@@ -93,6 +93,7 @@ def locate(
     matcher: Callable[[Tensor, Tensor, Tensor], tuple[Tensor, Tensor]] | None = None,
     prior_xy: np.ndarray | None = None,
     radius: float = 500.0,
+    drop_harmonics: int = 0,
 ) -> Localization:
     """Best bank location and heading for each observed profile.
 
@@ -108,6 +109,7 @@ def locate(
             (filters (L, 2K), profile (B, N), heading_deg (B,)) -> psr (B, L), heading (B, L).
         prior_xy: (B, 2) map positions (e.g. the previous fixes): only locations within ``radius`` metres of
             a query's prior are candidates for it, and only the bank blocks near the priors are read.
+        drop_harmonics: ignore the profiles' harmonics 1 .. this (see :func:`band_psr`; 1 for image profiles).
     """
     heading_deg = torch.as_tensor(heading_deg, dtype=profile.dtype if isinstance(profile, Tensor) else None)
     check_query(profile, heading_deg, bank.bins)
@@ -132,7 +134,7 @@ def locate(
     with torch.no_grad():
         for offset, cells, filters in bank.blocks(chunk, dtype=profile.dtype, device=device, rows=rows):
             if matcher is None:
-                p, h = band_psr(filters, profile, heading_deg, band_deg, exclude, threshold)
+                p, h = band_psr(filters, profile, heading_deg, band_deg, exclude, threshold, drop_harmonics)
             else:
                 p, h = matcher(filters, profile, heading_deg)
             p = p.cpu().numpy()

@@ -49,7 +49,13 @@ def check_query(profile: Tensor, heading_deg: Tensor, bins: int) -> None:
 
 
 def query_matrices(
-    profile: Tensor, heading_deg: Tensor, half_spectrum: int, band: int, exclude: int, threshold_deg: float
+    profile: Tensor,
+    heading_deg: Tensor,
+    half_spectrum: int,
+    band: int,
+    exclude: int,
+    threshold_deg: float,
+    drop_harmonics: int = 0,
 ) -> tuple[Tensor, Tensor, Tensor, Tensor]:
     """The query side of the matching products.
 
@@ -58,6 +64,7 @@ def query_matrices(
         heading_deg: ``(B,)`` compass headings, degrees.
         half_spectrum: stored frequencies K of the bank.
         band: half-width of the heading band, bins; exclude: odd PSR window, bins.
+        drop_harmonics: zero the query's harmonics 1 .. this (1 = the sinusoid a residual camera tilt adds).
     Returns:
         lag_matrix ``(2K, B T)``, energy_matrix ``(2K, B)``, dc ``(2, B)`` (Re, -Im of Z_0) and lags ``(B, T)``
         (T = 2 (band + exclude // 2) + 1, centred on the lag of the compass heading).
@@ -67,6 +74,9 @@ def query_matrices(
     spectrum = torch.view_as_real(torch.fft.rfft(profile_normalize(profile, threshold_deg), dim=-1))
     spectrum = spectrum[:, :half_spectrum]  # (B, K, 2)
     k = torch.arange(half_spectrum, dtype=dtype, device=profile.device)
+    if drop_harmonics > 0:
+        keep = ((k < 1) | (k > drop_harmonics)).to(dtype)
+        spectrum = spectrum * keep[None, :, None]
     weight = torch.where((k == 0) | (2 * k == bins), torch.ones_like(k), 2 * torch.ones_like(k)) / bins  # (K,)
     reach = band + exclude // 2
     centre = torch.round(-heading_deg.to(dtype) * bins / 360.0)
@@ -91,6 +101,7 @@ def band_psr(
     band_deg: float = 4.0,
     exclude: int = 11,
     threshold_deg: float = 1.0,
+    drop_harmonics: int = 0,
 ) -> tuple[Tensor, Tensor]:
     """Score bank locations against observed profiles.
 
@@ -101,6 +112,8 @@ def band_psr(
         band_deg: search band around the compass heading, degrees.
         exclude: odd number of bins around the peak left out of the sidelobe.
         threshold_deg: profile normalisation threshold (must match the bank).
+        drop_harmonics: ignore the query's harmonics 1 .. this: a pitch/roll error of the levelling adds a
+            sinusoid (harmonic 1) to a profile measured in an image, which then carries no position information.
     Returns:
         psr ``(B, L)`` and heading ``(B, L)`` in degrees [0, 360) of the band peak (sub-bin).
     """
@@ -111,7 +124,8 @@ def band_psr(
     band = band_bins(band_deg, bins)
     if exclude < 1 or exclude % 2 == 0 or 2 * (band + exclude // 2) + 1 > bins - exclude - 2:
         raise InputError(f"band {band_deg} deg and exclude {exclude} bins do not fit in {bins} bins")
-    lag_matrix, energy_matrix, dc, lags = query_matrices(profile, heading_deg, half, band, exclude, threshold_deg)
+    lag_matrix, energy_matrix, dc, lags = query_matrices(profile, heading_deg, half, band, exclude, threshold_deg,
+                                                         drop_harmonics)
     filters = filters.to(profile.dtype)
     batch, taps = lags.shape
     response = (filters @ lag_matrix).reshape(-1, batch, taps).transpose(0, 1)  # (B, L, T)
@@ -144,9 +158,12 @@ class BandPsr(nn.Module):
         filters ``(L, 2K)``, profile ``(B, N)``, heading_deg ``(B,)`` -> psr ``(B, L)``, heading ``(B, L)`` deg.
     """
 
-    def __init__(self, band_deg: float = 4.0, exclude: int = 11, threshold_deg: float = 1.0) -> None:
+    def __init__(self, band_deg: float = 4.0, exclude: int = 11, threshold_deg: float = 1.0,
+                 drop_harmonics: int = 0) -> None:
         super().__init__()
         self.band_deg, self.exclude, self.threshold_deg = band_deg, exclude, threshold_deg
+        self.drop_harmonics = drop_harmonics
 
     def forward(self, filters: Tensor, profile: Tensor, heading_deg: Tensor) -> tuple[Tensor, Tensor]:
-        return band_psr(filters, profile, heading_deg, self.band_deg, self.exclude, self.threshold_deg)
+        return band_psr(filters, profile, heading_deg, self.band_deg, self.exclude, self.threshold_deg,
+                        self.drop_harmonics)

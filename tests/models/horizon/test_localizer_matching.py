@@ -17,10 +17,11 @@ from models.horizon.localizer import locate, resample_profile, subgrid_refine
 from models.horizon.matching import band_psr
 
 
-def _brute_psr(filters, profile, heading_deg, band_deg, exclude, threshold):
+def _brute_psr(filters, profile, heading_deg, band_deg, exclude, threshold, drop=0):
     """Full irfft response per location (numpy fp64 loop), peak in the band, sidelobe by an explicit mask."""
     bins = profile.shape[-1]
     z = np.fft.rfft(profile_normalize(torch.from_numpy(profile), threshold).numpy())
+    z[:, 1 : drop + 1] = 0
     band = max(1, math.ceil(band_deg * bins / 360))
     psr = np.zeros((len(profile), len(filters)))
     heading = np.zeros_like(psr)
@@ -42,8 +43,8 @@ def _brute_psr(filters, profile, heading_deg, band_deg, exclude, threshold):
     return psr, heading
 
 
-@pytest.mark.parametrize(("bins", "frequencies", "band_deg"), [(128, 65, 4.0), (200, 40, 10.0)])
-def test_band_psr_matches_full_response_loop(bins, frequencies, band_deg):
+@pytest.mark.parametrize(("bins", "frequencies", "band_deg", "drop"), [(128, 65, 4.0, 0), (200, 40, 10.0, 1)])
+def test_band_psr_matches_full_response_loop(bins, frequencies, band_deg, drop):
     gen = torch.Generator().manual_seed(bins)
     filters = torch.randn(37, 2 * frequencies, generator=gen, dtype=torch.float64)
     filters[:, 1] = 0  # DC and Nyquist of a real signal's spectrum are real
@@ -51,11 +52,27 @@ def test_band_psr_matches_full_response_loop(bins, frequencies, band_deg):
         filters[:, -1] = 0
     profile = torch.cumsum(torch.randn(3, bins, generator=gen, dtype=torch.float64), -1) * 0.01
     heading = torch.tensor([0.0, 123.4, 359.9], dtype=torch.float64)
-    psr, est = band_psr(filters, profile, heading, band_deg, 11, 1.0)
-    ref_psr, ref_heading = _brute_psr(filters.numpy(), profile.numpy(), heading.numpy(), band_deg, 11, 1.0)
+    psr, est = band_psr(filters, profile, heading, band_deg, 11, 1.0, drop)
+    ref_psr, ref_heading = _brute_psr(filters.numpy(), profile.numpy(), heading.numpy(), band_deg, 11, 1.0, drop)
     np.testing.assert_allclose(psr.numpy(), ref_psr, rtol=1e-9, atol=1e-9)
     diff = (est.numpy() - ref_heading + 180) % 360 - 180
     np.testing.assert_allclose(diff, 0, atol=1e-9)
+
+
+def test_dropping_harmonic_one_ignores_a_tilt_sinusoid():
+    gen = torch.Generator().manual_seed(3)
+    filters = torch.randn(20, 2 * 129, generator=gen, dtype=torch.float64)
+    filters[:, 1] = filters[:, -1] = 0
+    psi = column_azimuths(256, torch.float64)
+    base = 3.0 * torch.rand(1, 256, generator=gen, dtype=torch.float64)  # degrees, above the threshold
+    tilted = base + 0.4 * torch.cos(psi - 0.7)  # a levelling error adds harmonic 1 (in elevation)
+    to_tan = lambda deg: torch.tan(torch.deg2rad(deg))  # noqa: E731
+    heading = torch.tensor([77.0], dtype=torch.float64)
+    p0, h0 = band_psr(filters, to_tan(base), heading, drop_harmonics=1)
+    p1, h1 = band_psr(filters, to_tan(tilted), heading, drop_harmonics=1)
+    np.testing.assert_allclose(p1.numpy(), p0.numpy(), rtol=1e-9)  # PSR is scale invariant: max division is moot
+    np.testing.assert_allclose(h1.numpy(), h0.numpy(), atol=1e-9)
+    assert not np.allclose(band_psr(filters, to_tan(tilted), heading)[0].numpy(), p0.numpy(), rtol=1e-3)
 
 
 def test_band_psr_float32_close_to_float64():
