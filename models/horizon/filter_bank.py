@@ -21,14 +21,19 @@ stated, degrees are assumed here), then the mean is removed. No log, no window, 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 from torch import Tensor, nn
+from tqdm import tqdm
 
 from data.errors import InputError
+from data.horizon.bank_io import BankWriter, FilterBank, dem_fingerprint
 from data.world.dem import Dem
+from data.world.raycast import virtual_horizon
 from models.dcf.mosse import Mosse, mosse_filter, mosse_train
 
 
@@ -216,7 +221,7 @@ def sea_mask(dem: Dem, grid: BankGrid, rows: np.ndarray | None = None, cols: np.
 def build_filter_bank(
     dem: Dem,
     settings: BankSettings,
-    out,
+    out: str | Path,
     bounds: tuple[float, float, float, float] | None = None,
     storage_dtype: str = "float16",
     tile_points: int = 2**15,
@@ -225,7 +230,7 @@ def build_filter_bank(
     overwrite: bool = False,
     progress: bool = True,
     device: torch.device | str | None = None,
-):
+) -> FilterBank:
     """Build and store the filter bank of every sea grid location (module docstring), tile by tile.
 
     Args:
@@ -240,13 +245,6 @@ def build_filter_bank(
     Returns:
         The opened ``FilterBank``.
     """
-    import time
-
-    from tqdm import tqdm
-
-    from data.horizon.bank_io import BankWriter, FilterBank, dem_fingerprint
-    from data.world.raycast import virtual_horizon
-
     grid = bank_grid(dem, settings.spacing, bounds)
     offsets = settings.sample_offsets()
     halo = max(abs(dr) for dr, _ in offsets)
