@@ -6,7 +6,8 @@
 
 Graphs (batch and width dynamic; the width must stay a multiple of the backbone stride):
 - finder: ``image`` (B, 3, H, W) tilted panorama -> ``sincos`` (B, 4) = (sin p, cos p, sin q, cos q).
-- segmenter: ``image`` (B, 3, H, W) levelled panorama -> ``profiles`` (B, 2, W) tan elevation of horizon, water.
+- segmenter: ``image`` (B, 3, H, W) levelled panorama -> ``profiles`` (B, 2, W) heights of horizon and water
+  line above the centre in half-image-heights (``models.horizon.segmenter.heights_to_tangent``).
 - level: ``image`` (B, 3, H, W), ``pitch`` (B,), ``roll`` (B,) rad -> ``level`` (B, 3, H, W).
 The deployed chain is finder -> atan2 -> level -> segmenter (ch. 4.3). Without ``--ckpt`` the network is
 randomly initialised (for testing the export only).

@@ -9,14 +9,16 @@ directory has none.
 Samples (dicts of tensors):
 - ``task="finder"``: ``image`` (3, H, W) tilted panorama resized to ``input_width``; ``pitch``, ``roll``.
 - ``task="segmenter"``: ``image`` (3, H, W) panorama levelled with the label (train/val) or true (test) pitch
-  and roll, resized; ``horizon``, ``water`` (W,) tan elevation per column of the levelled image.
-  Training crops a random ``crop_width`` columns (the network is width-free).
+  and roll, resized; ``horizon``, ``water`` (W,) tan elevation per column of the levelled image; ``focal``
+  () px/rad of the whole resized panorama. Training crops a random ``crop_width`` columns (the network is
+  width-free).
 Test samples add ``true_*`` and ``classical_*`` entries, ``classical_ok`` and ``degraded``.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import cv2
@@ -99,7 +101,8 @@ class HorizonFrames(Dataset):
                 start = int(torch.randint(0, self.input_width, ()))
                 columns = (torch.arange(self.crop_width) + start) % self.input_width
                 level, horizon, water = level[..., columns], horizon[columns], water[columns]
-            sample.update(image=level, horizon=horizon, water=water)
+            focal = torch.tensor(self.input_width / (2 * math.pi))
+            sample.update(image=level, horizon=horizon, water=water, focal=focal)
         if self.test:
             for key in ("pitch", "roll"):
                 sample[f"true_{key}"] = value(self.truth, key)

@@ -134,7 +134,10 @@ class HorizonFinderSystem(_HorizonSystem):
 
 
 class HorizonSegmenterSystem(_HorizonSystem):
-    """Trains ``HorizonSegmenter`` (arguments as there) with a smooth L1 loss on the profiles in mrad.
+    """Trains ``HorizonSegmenter`` (arguments as there) with a smooth L1 loss on the profiles in pixels.
+
+    Batches carry the profiles as tan elevation and ``focal`` (B,), the focal length in px/rad of the whole
+    levelled panorama the (possibly cropped) image comes from; profiles are compared as image rows.
 
     Args:
         lr: peak learning rate (one-cycle schedule), weight_decay: AdamW weight decay.
@@ -161,16 +164,22 @@ class HorizonSegmenterSystem(_HorizonSystem):
         self.net = HorizonSegmenter(backbone, weights, stage, frozen, heads, head_channels, channels)
 
     def forward(self, image: torch.Tensor) -> torch.Tensor:
-        """(B, 3, H, W) levelled panorama -> (B, 2, W) tan elevation of the horizon and water line."""
+        """(B, 3, H, W) levelled panorama -> (B, 2, W) horizon and water heights in half-image-heights."""
         return self.net(image)
 
+    @staticmethod
+    def _rows(tangent: torch.Tensor, focal: torch.Tensor) -> torch.Tensor:
+        """tan elevation (B, ...) -> pixels above the image centre (B, ...)."""
+        return tangent * focal.reshape(-1, *([1] * (tangent.ndim - 1)))
+
     def _step(self, batch: dict[str, torch.Tensor], stage: str) -> torch.Tensor:
-        out = self(batch["image"]) * 1e3
-        target = torch.stack([batch["horizon"], batch["water"]], 1) * 1e3
-        loss = F.smooth_l1_loss(out, target, beta=1.0)
+        image = batch["image"]
+        out = self(image) * (image.shape[-2] / 2)  # px above the centre
+        target = self._rows(torch.stack([batch["horizon"], batch["water"]], 1), batch["focal"])
+        loss = F.smooth_l1_loss(out, target, beta=0.5)
         size = len(out)
         self.log(f"{stage}/loss", loss, prog_bar=True, batch_size=size)
-        self.log(f"{stage}/horizon_mae_mrad", (out[:, 0] - target[:, 0]).abs().mean(), batch_size=size)
+        self.log(f"{stage}/horizon_mae_px", (out[:, 0] - target[:, 0]).abs().mean(), batch_size=size)
         return loss
 
     def training_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> torch.Tensor:
@@ -180,19 +189,19 @@ class HorizonSegmenterSystem(_HorizonSystem):
         self._step(batch, "val")
 
     def test_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> None:
-        out = self(batch["image"])
-        px_per_mrad = batch["image"].shape[-1] / (2 * math.pi) / 1e3
+        image, focal = batch["image"], batch["focal"]
+        out = self(image) * (image.shape[-2] / 2)
 
-        def frame_error(profile: torch.Tensor, key: str) -> torch.Tensor:
-            return ((profile - batch[key]).abs() * 1e3).median(-1).values  # (B,) mrad
+        def frame_error(rows: torch.Tensor, key: str) -> torch.Tensor:
+            return (rows - self._rows(batch[key], focal)).abs().median(-1).values  # (B,) px
 
         horizon = frame_error(out[:, 0], "true_horizon")
         water = frame_error(out[:, 1], "true_water")
-        classical = frame_error(batch["classical_horizon"], "true_horizon")
+        classical = frame_error(self._rows(batch["classical_horizon"], focal), "true_horizon")
+        mrad = 1e3 / focal
         self._test_outputs.append({
-            "horizon_mrad": horizon, "water_mrad": water, "classical_horizon_mrad": classical,
-            "horizon_px": horizon * px_per_mrad, "water_px": water * px_per_mrad,
-            "classical_horizon_px": classical * px_per_mrad,
+            "horizon_px": horizon, "water_px": water, "classical_horizon_px": classical,
+            "horizon_mrad": horizon * mrad, "water_mrad": water * mrad, "classical_horizon_mrad": classical * mrad,
             "classical_ok": batch["classical_ok"], "degraded": batch["degraded"],
         })
 

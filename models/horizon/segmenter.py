@@ -1,9 +1,12 @@
 """HorizonSegmenter (ch. 4.3, fig. 4.6): horizon and water rows per column of a levelled panorama.
 
 ResNet backbone -> column pooling -> 1x1 projection -> two layers that double the horizontal resolution
-(transposed 1-D convolutions) -> a convolutional output head with two values per column: the tan elevation of
-the horizon (sky above) and of the water line (sea below). The output is resampled linearly to the input
-columns. The head is convolutional, as the thesis's footnote recommends, so any input width works.
+(transposed 1-D convolutions) -> a convolutional output head with two values per column: the height of the
+horizon (sky above) and of the water line (sea below) above the image centre, in half-image-heights
+(row = (H - 1) / 2 - y H / 2). The output is resampled linearly to the input columns. Nothing depends on the
+input width (the head is convolutional, as the thesis's footnote recommends), so the network runs on crops of a
+panorama as well as on whole ones; ``heights_to_tangent`` converts to tan elevation with the panorama's focal
+length.
 """
 
 from __future__ import annotations
@@ -24,8 +27,8 @@ class HorizonSegmenter(nn.Module):
         channels: channels of the projection and upsampling layers.
 
     Shapes:
-        image (B, 3, H, W) levelled panorama (or part of one) in [0, 1] -> (B, 2, W) tan elevation of the
-        horizon (channel 0) and water line (channel 1) per input column; rows = (H - 1) / 2 - t W / (2 pi).
+        image (B, 3, H, W) levelled panorama (or part of one) in [0, 1] -> (B, 2, W) heights y of the horizon
+        (channel 0) and water line (channel 1) per input column in half-image-heights above the centre.
     """
 
     def __init__(
@@ -41,12 +44,12 @@ class HorizonSegmenter(nn.Module):
         super().__init__()
         self.stage = stage
         self.backbone = ResNetBackbone(backbone, weights=weights, frozen=frozen, stages=(stage,))
-        self.pool = ColumnPool(self.backbone.channels[stage], heads, head_channels)
+        self.pool = ColumnPool(self.backbone.channels[stage], heads, head_channels, full_panorama=False)
         self.project = nn.Conv1d(self.pool.out_channels, channels, 1)
         self.up1 = nn.ConvTranspose1d(channels, channels, 4, stride=2, padding=1)
         self.up2 = nn.ConvTranspose1d(channels, channels, 4, stride=2, padding=1)
         self.head = nn.Conv1d(channels, 2, 3, padding=1)
-        self.skip = nn.Conv1d(heads, 2, 1)  # the pooled positions are already tan elevations
+        self.skip = nn.Conv1d(heads, 2, 1)  # the pooled positions are already heights
 
     def forward(self, image: torch.Tensor) -> torch.Tensor:
         pooled, position = self.pool(self.backbone(image)[self.stage])
@@ -54,5 +57,15 @@ class HorizonSegmenter(nn.Module):
         x = F.relu(self.up1(x))
         x = F.relu(self.up2(x))
         base = F.interpolate(self.skip(position), size=x.shape[-1], mode="linear", align_corners=False)
-        out = self.head(x) * 0.05 + base
+        out = self.head(x) * 0.1 + base
         return F.interpolate(out, size=image.shape[-1], mode="linear", align_corners=False)
+
+
+def heights_to_tangent(heights: torch.Tensor, image_height: int, focal: float) -> torch.Tensor:
+    """Heights above the centre in half-image-heights -> tan elevation, for a panorama of focal ``focal`` px/rad."""
+    return heights * (image_height / 2.0) / focal
+
+
+def tangent_to_heights(tangent: torch.Tensor, image_height: int, focal: float) -> torch.Tensor:
+    """Inverse of ``heights_to_tangent``."""
+    return tangent * focal / (image_height / 2.0)

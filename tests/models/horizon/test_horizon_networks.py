@@ -12,7 +12,7 @@ from lightning.pytorch.cli import LightningCLI
 import infer
 from data.horizon.datamodule import HorizonDataModule
 from export.horizon_onnx import export_horizon, load_network
-from models.horizon.column_pool import ColumnPool, row_tangent_grid
+from models.horizon.column_pool import ColumnPool, row_height_grid, row_tangent_grid
 from models.horizon.cylinder import row_tangents
 from models.horizon.finder import HorizonFinder, fourier_pool, sincos_to_angles
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
@@ -23,6 +23,8 @@ def test_row_tangent_grid_is_the_mean_of_the_input_rows():
     height, width, stride = 64, 512, 8
     rows = row_tangents(height, width, torch.float64).reshape(height // stride, stride).mean(1)
     assert torch.allclose(row_tangent_grid(height // stride, width // stride, torch.float64, None), rows)
+    centre_heights = ((height - 1) / 2 - (torch.arange(height // stride) + 0.5) * stride + 0.5) / (height / 2)
+    assert torch.allclose(row_height_grid(height // stride, torch.float64, None), centre_heights.double())
 
 
 def test_fourier_pool_matches_a_loop():
@@ -42,10 +44,14 @@ def test_column_pool_finds_the_row_of_a_single_bright_row():
     features[0, 0, 5] = 1.0
     _, position = pool(features)
     assert torch.allclose(position, torch.full_like(position, math.pi * (8 - 2 * 5 - 1) / 16), atol=1e-6)
+    pool.full_panorama = False  # heights in half-image-heights: row 5 of 8 is centred 3/8 below the centre
+    _, position = pool(features)
+    assert torch.allclose(position, torch.full_like(position, -3 / 8), atol=1e-6)
 
 
 @pytest.mark.parametrize("width", [256, 320])
 def test_networks_take_any_width(width):
+    """Any width; the segmenter gives the same rows for a crop as for the whole panorama (away from the cut)."""
     finder = HorizonFinder("resnet18", stage="layer2").eval()
     segmenter = HorizonSegmenter("resnet18", stage="layer2").eval()
     image = torch.rand(2, 3, 32, width)
@@ -54,7 +60,12 @@ def test_networks_take_any_width(width):
     assert torch.allclose(out.reshape(2, 2, 2).norm(dim=-1), torch.ones(2, 2), atol=1e-5)
     pitch, roll = sincos_to_angles(out)
     assert pitch.shape == roll.shape == (2,)
-    assert segmenter(image).shape == (2, 2, width)
+    whole = segmenter(image)
+    assert whole.shape == (2, 2, width)
+    with torch.no_grad():
+        crop = segmenter(image[..., : width // 2])
+    inner = slice(48, width // 2 - 48)
+    assert (crop[..., inner] - whole[..., inner]).abs().max() < 0.05 * whole.abs().max()
 
 
 @pytest.fixture(scope="module")

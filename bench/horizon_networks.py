@@ -1,0 +1,114 @@
+"""HorizonFinder and HorizonSegmenter against the ground truth and against the classical labels (ch. 4.3).
+
+    python bench/horizon_networks.py --finder F.ckpt --segmenter S.ckpt --data DIR [--input-width 512]
+                                     [--json] [--plot networks.png]
+
+DIR is a held-out dataset written by ``python infer.py render-dataset`` (or a DataModule's test set). Prints
+median errors and failure rates of both networks and of the classical pipeline on the same frames, for the clean
+and the degraded frames (the metrics of ``train.py test``). ``demo()`` renders a tiny set, trains both networks
+for a few epochs on it and prints the same table (a smoke run, not an accuracy claim).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def evaluate(finder: Path, segmenter: Path, data: Path, input_width: int = 512) -> dict[str, float]:
+    """``trainer.test`` of both checkpoints on ``data``; returns the merged metrics."""
+    from lightning.pytorch import Trainer
+
+    from data.horizon.datamodule import HorizonDataModule
+    from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
+
+    metrics: dict[str, float] = {}
+    for name, system, ckpt in (("finder", HorizonFinderSystem, finder),
+                               ("segmenter", HorizonSegmenterSystem, segmenter)):
+        if not Path(ckpt).is_file():
+            raise SystemExit(f"bench/horizon_networks.py: error: checkpoint not found: {ckpt}")
+        model = system.load_from_checkpoint(str(ckpt), map_location="cpu", weights_only=False)
+        datamodule = HorizonDataModule(root=str(data), test_root=str(data), task=name, input_width=input_width,
+                                       create=False, val_fraction=0.5)
+        trainer = Trainer(accelerator="cpu", logger=False, enable_progress_bar=False, enable_model_summary=False)
+        result = trainer.test(model, datamodule, verbose=False)[0]
+        metrics.update({f"{name}/{k.removeprefix('test/')}": v for k, v in result.items()})
+    return metrics
+
+
+def print_table(metrics: dict[str, float]) -> None:
+    for key in sorted(metrics):
+        if key.endswith("_median") or "failure" in key:
+            print(f"{key:>58}: {metrics[key]:.4g}")
+
+
+def demo() -> None:
+    """Tiny end-to-end run: render 32 + 12 panoramas (256 px), train both networks briefly, test them."""
+    from lightning.pytorch import Trainer, seed_everything
+
+    from data.horizon.datamodule import HorizonDataModule
+    from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
+
+    seed_everything(0)
+    with tempfile.TemporaryDirectory() as tmp:
+        data = dict(root=f"{tmp}/train", test_root=f"{tmp}/test", input_width=256, batch_size=8, count=32,
+                    test_count=12, width=256, height=32, dem_size_m=3000.0, dem_cell_m=10.0,
+                    degraded_fraction=0.2, test_degraded_fraction=0.5)
+        HorizonDataModule(**data).prepare_data()
+        metrics: dict[str, float] = {}
+        for name, system in (("finder", HorizonFinderSystem), ("segmenter", HorizonSegmenterSystem)):
+            model = system(backbone="resnet18", stage="layer1", heads=2, head_channels=8, channels=16, lr=3e-3)
+            datamodule = HorizonDataModule(**data, task=name)
+            trainer = Trainer(accelerator="cpu", max_epochs=3, logger=False, enable_progress_bar=False,
+                              enable_model_summary=False, enable_checkpointing=False, num_sanity_val_steps=0)
+            trainer.fit(model, datamodule)
+            result = trainer.test(model, datamodule, verbose=False)[0]
+            metrics.update({f"{name}/{k.removeprefix('test/')}": v for k, v in result.items()})
+    print_table(metrics)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--finder", type=Path, required=True, help="HorizonFinderSystem checkpoint")
+    parser.add_argument("--segmenter", type=Path, required=True, help="HorizonSegmenterSystem checkpoint")
+    parser.add_argument("--data", type=Path, required=True, help="held-out dataset directory")
+    parser.add_argument("--input-width", type=int, default=512)
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--plot", type=Path, help="bar chart of the failure rates (PNG)")
+    args = parser.parse_args()
+    metrics = evaluate(args.finder, args.segmenter, args.data, args.input_width)
+    if args.json:
+        print(json.dumps(metrics))
+    else:
+        print_table(metrics)
+    if args.plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(7, 3.5))
+        labels, values = [], []
+        for net in ("finder", "segmenter"):
+            for subset in ("clean", "degraded"):
+                for who in ("failure_rate", "classical_failure_rate"):
+                    key = f"{net}/{subset}/{who}"
+                    if key in metrics:
+                        labels.append(f"{net}\n{subset}\n{'classical' if who.startswith('classical') else 'net'}")
+                        values.append(metrics[key])
+        ax.bar(range(len(values)), values, color=["C0", "C1"] * (len(values) // 2))
+        ax.set_xticks(range(len(values)), labels, fontsize=7)
+        ax.set_ylabel("failure rate")
+        fig.tight_layout()
+        args.plot.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(args.plot, dpi=110)
+
+
+if __name__ == "__main__":
+    main()
