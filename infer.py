@@ -307,7 +307,7 @@ def _track(args: argparse.Namespace) -> int:
 # --- demo -------------------------------------------------------------------------------------------------------
 
 DEMOS = {"triangulation": "bench.triangulation", "point_tracking": "bench.point_tracking",
-         "localization": "bench.localization"}
+         "localization": "bench.localization", "vos": "bench.vos"}
 
 
 def _demo_arguments(p: argparse.ArgumentParser) -> None:
