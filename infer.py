@@ -233,7 +233,6 @@ def _horizon(args: argparse.Namespace) -> int:
     from data.horizon.datamodule import resize_panorama
     from models.horizon.cylinder import tangent_to_row, warp_panorama
     from models.horizon.finder import sincos_to_angles
-    from models.horizon.segmenter import heights_to_tangent
 
     if args.input_width < 64 or args.input_width % 32:
         raise InputError(f"--input-width must be a multiple of 32 and >= 64, got {args.input_width}")
@@ -243,8 +242,7 @@ def _horizon(args: argparse.Namespace) -> int:
     with torch.no_grad():
         pitch, roll = sincos_to_angles(finder(resize_panorama(image, args.input_width)))
         level = warp_panorama(image, pitch, roll)
-        small = resize_panorama(level, args.input_width)
-        profiles = heights_to_tangent(segmenter(small), small.shape[-2], args.input_width / (2 * math.pi))
+        profiles = segmenter(resize_panorama(level, args.input_width))  # tan elevation
     height, width = image.shape[-2:]
     profiles = torch.nn.functional.interpolate(profiles, size=width, mode="linear", align_corners=False)[0]
     horizon, water = profiles.numpy().astype(np.float64)

@@ -6,8 +6,8 @@
 
 Graphs (batch and width dynamic; the width must stay a multiple of the backbone stride):
 - finder: ``image`` (B, 3, H, W) tilted panorama -> ``sincos`` (B, 4) = (sin p, cos p, sin q, cos q).
-- segmenter: ``image`` (B, 3, H, W) levelled panorama -> ``profiles`` (B, 2, W) heights of horizon and water
-  line above the centre in half-image-heights (``models.horizon.segmenter.heights_to_tangent``).
+- segmenter: ``image`` (B, 3, H, W) whole levelled panorama -> ``profiles`` (B, 2, W) tan elevation of the
+  horizon and the water line (``models.horizon.segmenter.PanoramaSegmenter``).
 - level: ``image`` (B, 3, H, W), ``pitch`` (B,), ``roll`` (B,) rad -> ``level`` (B, 3, H, W).
 The deployed chain is finder -> atan2 -> level -> segmenter (ch. 4.3). Without ``--ckpt`` the network is
 randomly initialised (for testing the export only).
@@ -26,6 +26,7 @@ from data.errors import InputError
 from export.onnx import export_onnx, onnx_session, run_onnx
 from models.horizon.cylinder import LevelPanorama
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
+from models.horizon.segmenter import PanoramaSegmenter
 
 SPECS = {
     "finder": (("image",), ("sincos",)),
@@ -35,7 +36,8 @@ SPECS = {
 
 
 def load_network(which: str, ckpt: str | Path | None = None, **network_args) -> nn.Module:
-    """The plain network of a checkpoint (or a fresh one built from ``network_args``), in eval mode."""
+    """The network of a checkpoint (or a fresh one built from ``network_args``) in eval mode; the segmenter is
+    wrapped in ``PanoramaSegmenter`` (whole panoramas in, tan elevation out)."""
     if which == "level":
         return LevelPanorama().eval()
     systems = {"finder": HorizonFinderSystem, "segmenter": HorizonSegmenterSystem}
@@ -47,7 +49,8 @@ def load_network(which: str, ckpt: str | Path | None = None, **network_args) -> 
         system = systems[which].load_from_checkpoint(str(ckpt), map_location="cpu", weights_only=False)
     else:
         system = systems[which](**network_args)
-    return system.net.eval()
+    net = PanoramaSegmenter(system.net) if which == "segmenter" else system.net
+    return net.eval()
 
 
 def example_inputs(which: str, height: int, width: int, batch: int = 2, seed: int = 0) -> tuple[torch.Tensor, ...]:

@@ -6,10 +6,12 @@ horizon (sky above) and of the water line (sea below) above the image centre, in
 (row = (H - 1) / 2 - y H / 2). The output is resampled linearly to the input columns. Nothing depends on the
 input width (the head is convolutional, as the thesis's footnote recommends), so the network runs on crops of a
 panorama as well as on whole ones; ``heights_to_tangent`` converts to tan elevation with the panorama's focal
-length.
+length, and ``PanoramaSegmenter`` does so for whole 360-degree panoramas (the deployed form).
 """
 
 from __future__ import annotations
+
+import math
 
 import torch
 import torch.nn.functional as F
@@ -69,3 +71,20 @@ def heights_to_tangent(heights: torch.Tensor, image_height: int, focal: float) -
 def tangent_to_heights(tangent: torch.Tensor, image_height: int, focal: float) -> torch.Tensor:
     """Inverse of ``heights_to_tangent``."""
     return tangent * focal / (image_height / 2.0)
+
+
+class PanoramaSegmenter(nn.Module):
+    """A ``HorizonSegmenter`` on whole 360-degree panoramas, returning tan elevation (the deployed form).
+
+    Shapes:
+        image (B, 3, H, W) levelled panorama -> (B, 2, W) tan elevation of the horizon and the water line, with
+        the focal length W / (2 pi) of the whole panorama.
+    """
+
+    def __init__(self, net: HorizonSegmenter) -> None:
+        super().__init__()
+        self.net = net
+        self.backbone, self.stage = net.backbone, net.stage
+
+    def forward(self, image: torch.Tensor) -> torch.Tensor:
+        return heights_to_tangent(self.net(image), image.shape[-2], image.shape[-1] / (2 * math.pi))

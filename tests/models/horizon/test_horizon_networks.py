@@ -16,7 +16,7 @@ from models.horizon.column_pool import ColumnPool, row_height_grid, row_tangent_
 from models.horizon.cylinder import row_tangents
 from models.horizon.finder import HorizonFinder, fourier_pool, sincos_to_angles
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
-from models.horizon.segmenter import HorizonSegmenter
+from models.horizon.segmenter import HorizonSegmenter, PanoramaSegmenter
 
 
 def test_row_tangent_grid_is_the_mean_of_the_input_rows():
@@ -66,6 +66,9 @@ def test_networks_take_any_width(width):
         crop = segmenter(image[..., : width // 2])
     inner = slice(48, width // 2 - 48)
     assert (crop[..., inner] - whole[..., inner]).abs().max() < 0.05 * whole.abs().max()
+    # Deployed form: tan elevation = half-image-heights * (H / 2) / (W / 2 pi) for a whole panorama.
+    tangent = PanoramaSegmenter(segmenter)(image)
+    assert torch.allclose(tangent, whole * 16 / (width / (2 * math.pi)), atol=1e-6)
 
 
 @pytest.fixture(scope="module")
