@@ -38,6 +38,16 @@ def command(name: str, help_text: str, add_arguments: Callable[[argparse.Argumen
     return register
 
 
+def print_report(report: dict, as_json: bool) -> None:
+    """Print a flat report as one JSON object, or as aligned ``key: value`` lines."""
+    if as_json:
+        print(json.dumps(report))
+        return
+    width = max(map(len, report))
+    for key, value in report.items():
+        print(f"{key:>{width}}: {value:.6g}" if isinstance(value, float) else f"{key:>{width}}: {value}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="infer.py", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser, metavar="COMMAND")
@@ -89,11 +99,7 @@ def _triangulate(args: argparse.Namespace) -> int:
     report, result, index = evaluate_reconstruction(recon, args.views, args.method, getattr(torch, args.dtype))
     if args.out:
         write_ply(args.out, result.points[result.valid], recon.colors[index][result.valid])
-    if args.json:
-        print(json.dumps(report))
-    else:
-        for key, value in report.items():
-            print(f"{key:>18}: {value:.6g}" if isinstance(value, float) else f"{key:>18}: {value}")
+    print_report(report, args.json)
     return 0
 
 # --- render-dataset (thesis chapter 4.2) ------------------------------------------------------------------------
@@ -187,11 +193,7 @@ def _horizon_label(args: argparse.Namespace) -> int:
     report = {"pitch_deg": math.degrees(labels.pitch.item()), "roll_deg": math.degrees(labels.roll.item()),
               "heading_deg": math.degrees(labels.heading.item()), "quality": labels.quality.item(),
               "ok": bool(labels.ok.item())}
-    if args.json:
-        print(json.dumps(report))
-    else:
-        for key, value in report.items():
-            print(f"{key:>12}: {value:.4f}" if isinstance(value, float) else f"{key:>12}: {value}")
+    print_report(report, args.json)
     return 0 if report["ok"] else 1
 
 
@@ -251,11 +253,7 @@ def _horizon(args: argparse.Namespace) -> int:
               "land_columns": int(np.sum(horizon - water > 2 * math.pi / width))}
     if args.out:
         np.savez(args.out, pitch=pitch.item(), roll=roll.item(), horizon=horizon, water=water)
-    if args.json:
-        print(json.dumps(report))
-    else:
-        for key, value in report.items():
-            print(f"{key:>20}: {value:.4f}" if isinstance(value, float) else f"{key:>20}: {value}")
+    print_report(report, args.json)
     return 0
 
 # --- track ------------------------------------------------------------------------------------------------------
