@@ -5,8 +5,10 @@
 
 DIR is a held-out dataset written by ``python infer.py render-dataset`` (or a DataModule's test set). Prints
 median errors and failure rates of both networks and of the classical pipeline on the same frames, for the clean
-and the degraded frames (the metrics of ``train.py test``). ``demo()`` renders a tiny set, trains both networks
-for 12 epochs on it and prints the same table (a smoke run, not an accuracy claim).
+and the degraded frames (the metrics of ``train.py test``; the segmenter there sees truly levelled panoramas),
+and of the deployed chain (finder -> levelling with its angles -> segmenter; failure = median error > 2 px).
+``demo()`` renders a tiny set, trains both networks for 12 epochs on it and prints the same table (a smoke
+run, not an accuracy claim).
 """
 
 from __future__ import annotations
@@ -41,6 +43,45 @@ def evaluate(finder: Path, segmenter: Path, data: Path, input_width: int = 512) 
         result = trainer.test(model, datamodule, verbose=False)[0]
         metrics.update({f"{name}/{k.removeprefix('test/')}": v for k, v in result.items()})
     return metrics
+
+
+def evaluate_chain(finder: Path, segmenter: Path, data: Path, input_width: int = 512) -> dict[str, float]:
+    """The deployed chain on every frame: finder -> levelling with its angles -> segmenter, vs ground truth.
+
+    Returns median horizon-row errors (px at ``input_width``, per-frame medians) and the share of frames above
+    2 px, overall and for clean and degraded frames.
+    """
+    import numpy as np
+    import torch
+
+    from data.horizon.datamodule import read_panorama, resize_panorama
+    from data.horizon.dataset import read_split
+    from export.horizon_onnx import load_network
+    from models.horizon.cylinder import warp_panorama
+    from models.horizon.finder import sincos_to_angles
+
+    find, segment = load_network("finder", finder), load_network("segmenter", segmenter)
+    truth = read_split(data, "truth")
+    focal = input_width / (2 * np.pi)
+    errors = []
+    with torch.no_grad():
+        for start in range(0, len(truth["pitch"]), 8):
+            index = range(start, min(start + 8, len(truth["pitch"])))
+            image = torch.stack([read_panorama(Path(data) / "images" / f"{k:06d}.png") for k in index])
+            pitch, roll = sincos_to_angles(find(resize_panorama(image, input_width)))
+            profile = segment(resize_panorama(warp_panorama(image, pitch, roll), input_width))[:, 0].numpy()
+            true = torch.from_numpy(truth["horizon"][list(index)]).float()
+            true = torch.nn.functional.interpolate(true[:, None], size=input_width, mode="linear",
+                                                   align_corners=False)[:, 0].numpy()
+            errors.append(np.median(np.abs(profile - true), axis=1) * focal)
+    error = np.concatenate(errors)
+    degraded = truth["degraded"].astype(bool)
+    out = {}
+    for subset, mask in (("all", np.ones_like(degraded)), ("clean", ~degraded), ("degraded", degraded)):
+        if mask.any():
+            out[f"chain/{subset}/horizon_px_median"] = float(np.median(error[mask]))
+            out[f"chain/{subset}/failure_rate"] = float(np.mean(error[mask] > 2.0))
+    return out
 
 
 def print_table(metrics: dict[str, float]) -> None:
@@ -86,6 +127,7 @@ def main() -> None:
     parser.add_argument("--plot", type=Path, help="bar chart of the failure rates (PNG)")
     args = parser.parse_args()
     metrics = evaluate(args.finder, args.segmenter, args.data, args.input_width)
+    metrics.update(evaluate_chain(args.finder, args.segmenter, args.data, args.input_width))
     if args.json:
         print(json.dumps(metrics))
     else:
