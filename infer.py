@@ -303,6 +303,7 @@ def _track(args: argparse.Namespace) -> int:
 # --- demo -------------------------------------------------------------------------------------------------------
 
 DEMOS = {"triangulation": "bench.triangulation", "point_tracking": "bench.point_tracking",
+         "horizon_labels": "bench.horizon_labels", "horizon_networks": "bench.horizon_networks",
          "localization": "bench.localization", "vos": "bench.vos"}
 
 
