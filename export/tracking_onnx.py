@@ -3,10 +3,11 @@
     python -m export.tracking_onnx --out track_step.onnx [--method ccot] [--height 240 --width 320]
 
 Inputs: ``frame`` (1, 1, H, W) gray float32 (H, W dynamic), ``positions`` (P, 2), ``lost`` (P,) bool and the
-filter state ``A`` (L, P, N, K, 2) (real and imaginary parts of the numerators) and ``B`` (L, P, N, K), with a
-dynamic number of points P. Outputs: ``positions``, ``lost``, ``psr`` (P,) and the updated ``A``, ``B``. The
-graph uses DFT (opset >= 18), GridSample and a fixed number of Newton iterations; the first frame's state comes
-from :meth:`PointTracker.init` (or from running a step on the same frame twice).
+filter state of every pyramid level, ``filters_0`` .. ``filters_{L-1}`` (3, P, N_l, K_l) (real and imaginary
+parts of the numerators and the denominators, finest level first), with a dynamic number of points P. Outputs:
+``positions_out``, ``lost_out``, ``psr`` (P,) and the updated ``filters_l_out``. The graph uses GridSample,
+matrix products for the small DFTs and a fixed number of Newton iterations; the first frame's state comes from
+:meth:`PointTracker.init`.
 """
 
 from __future__ import annotations
@@ -19,8 +20,12 @@ import torch
 from export.onnx import export_onnx
 from models.tracking import PointTracker
 
-INPUTS = ("frame", "positions", "lost", "A", "B")
-OUTPUTS = ("positions_out", "lost_out", "psr", "A_out", "B_out")
+
+def io_names(levels: int) -> tuple[list[str], list[str]]:
+    """Input and output names of the exported step for a ``levels``-level tracker."""
+    filters = [f"filters_{level}" for level in range(levels)]
+    inputs = ["frame", "positions", "lost", *filters]
+    return inputs, ["positions_out", "lost_out", "psr", *[f"{name}_out" for name in filters]]
 
 
 def example_inputs(tracker: PointTracker, height: int, width: int, points: int, seed: int = 0):
@@ -32,7 +37,7 @@ def example_inputs(tracker: PointTracker, height: int, width: int, points: int, 
     pts = torch.rand(points, 2, generator=gen) * torch.tensor([width - 1.0, height - 1.0])
     state = tracker.init(frame[0, 0], pts)
     nxt = torch.roll(frame, (2, -3), (2, 3))
-    return nxt, state.positions, state.lost, torch.view_as_real(state.A).contiguous(), state.B
+    return nxt, state.positions, state.lost, *state.filters
 
 
 def export_tracking_step(
@@ -44,15 +49,11 @@ def export_tracking_step(
     p = torch.export.Dim("points", min=2, max=100_000)
     h = torch.export.Dim("height", min=64, max=4096)
     w = torch.export.Dim("width", min=64, max=4096)
-    dynamic = {
-        "frame": {2: h, 3: w},
-        "positions": {0: p},
-        "lost": {0: p},
-        "A": {1: p},
-        "B": {1: p},
-    }
+    inputs, outputs = io_names(tracker.levels)
+    dynamic = {"frame": {2: h, 3: w}, "positions": {0: p}, "lost": {0: p}}
+    dynamic["filters"] = tuple({1: p} for _ in range(tracker.levels))  # forward's *filters
     with torch.no_grad():
-        return export_onnx(tracker, args, path, INPUTS, OUTPUTS, dynamic_shapes=dynamic)
+        return export_onnx(tracker, args, path, inputs, outputs, dynamic_shapes=dynamic)
 
 
 def main() -> None:

@@ -210,6 +210,16 @@ def _series(
 def fourier_series_peak(
     shat: Tensor, size: tuple[int, ...], iterations: int = 5, grid: Tensor | None = None
 ) -> tuple[Tensor, Tensor]:
+    """Sub-bin maximum of the periodic score ``s(t) = sum_k s^[k] exp(i 2 pi k . t / N)``: see
+    :func:`fourier_series_peak_parts`, here with a complex half spectrum ``shat`` ``(..., *K)``."""
+    if grid is None:
+        grid = torch.fft.irfftn(shat, s=size, dim=signal_dims(len(size)))
+    return fourier_series_peak_parts(shat.real, shat.imag, size, iterations, grid)
+
+
+def fourier_series_peak_parts(
+    sr: Tensor, si: Tensor, size: tuple[int, ...], iterations: int, grid: Tensor
+) -> tuple[Tensor, Tensor]:
     """Sub-bin maximum of the periodic score ``s(t) = sum_k s^[k] exp(i 2 pi k . t / N)``.
 
     The grid maximum (inverse DFT) starts ``iterations`` Newton steps on the Fourier series (2x2 closed-form
@@ -217,26 +227,22 @@ def fourier_series_peak(
     where the refined score is lower or the refinement moved more than one bin.
 
     Args:
-        shat: ``(..., *K)`` complex half spectrum of the score; size: odd signal size ``S``.
-        grid: the sampled score ``irfftn(shat)`` ``(..., *S)`` if already computed.
+        sr, si: ``(..., *K)`` real and imaginary parts of the score's half spectrum; size: odd signal size
+        ``S``. grid: the sampled score ``irfftn(sr + i si)`` ``(..., *S)``.
     Returns:
         shift ``(..., ndim)`` in bins (last axis first, in ``[-N/2, N/2)``); score ``(...)`` at the peak.
     """
     ndim = len(size)
     _check_odd(size)
-    dims = signal_dims(ndim)
-    real_dtype = shat.real.dtype
-    if grid is None:
-        grid = torch.fft.irfftn(shat, s=size, dim=dims)
+    real_dtype = sr.dtype
     arg = grid.flatten(-ndim).argmax(dim=-1)
     t0 = torch.stack(
         [wrap_index(i, n).to(real_dtype) for i, n in zip(_unravel(arg, size), size, strict=True)], dim=-1
     )
-    ks = _frequency_grid(size, shat.device, real_dtype)
+    ks = _frequency_grid(size, sr.device, real_dtype)
     w = torch.where(ks[-1] == 0, torch.ones_like(ks[-1]), 2 * torch.ones_like(ks[-1]))
-    sr, si = shat.real, shat.imag
     srsi = torch.cat([sr, si], -1) if ndim == 2 else None
-    two_pi_over_n = torch.tensor([2 * math.pi / n for n in size], device=shat.device, dtype=real_dtype)
+    two_pi_over_n = torch.tensor([2 * math.pi / n for n in size], device=sr.device, dtype=real_dtype)
     theta0 = t0 * two_pi_over_n
     theta = theta0
     for _ in range(iterations):
@@ -319,6 +325,6 @@ class CcotFilter(nn.Module):
         """
         size = tuple(z.shape[-self.ndim :])
         shat = ccot_filter(*state, self.ndim, self.beta2, self.beta2_rel) * self.sample(z)
-        shift, _ = fourier_series_peak(shat, size, self.newton_iterations)
         score = torch.fft.irfftn(shat, s=size, dim=signal_dims(self.ndim))
+        shift, _ = fourier_series_peak(shat, size, self.newton_iterations, grid=score)
         return score, shift, peak_to_sidelobe_ratio(score, self.ndim, self.psr_exclude)

@@ -2,59 +2,73 @@
 pyramid level, searched coarse to fine.
 
 Per frame: build a 3-level pyramid; from the coarsest level down, extract every point's patch at its current
-estimate (one ``grid_sample`` call for all points), correlate with that level's filter, find the peak (Newton
-on the Fourier series for C-COT, grid peak plus parabola for MOSSE) and add the scaled shift. Points whose
-level-0 PSR falls below a threshold or that leave the image are flagged lost and frozen at their last
-position. Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position
-(the coarsest level extracts it again; finer levels shift their search samples in the Fourier domain).
+estimate (one ``grid_sample`` call for all points), correlate with that level's filter, find the peak and add
+the scaled shift. Points whose level-0 PSR falls below a threshold or that leave the image are flagged lost and
+frozen at their last position. Then the filters of the points still tracked learn, with weight ``eta``, a
+sample at the new position: the search sample shifted in the Fourier domain.
+
+Cost: the patches are small (default 21, 15 and 25 px from fine to coarse: the finest sets the accuracy, the
+coarsest the largest motion) and their DFTs are real matrix products (:class:`~models.dcf.dft.RealDft2`) with
+the window and the spline interpolation folded in; Newton refinement on the Fourier series runs where it sets
+the output (level 0), the coarser levels take the grid peak refined by a parabola.
 
 Variants: ``ccot`` (continuous filter, exponentially decaying sample weights = a sample memory), ``ccot_ff``
-(continuous filter retrained from the newest sample only, ``eta = 1``) and ``mosse``. A level-``l`` pixel
-``i`` sits at level-0 coordinate ``2^l (i + 0.5) - 0.5`` (``kornia`` ``pyrdown``). Positions are (x, y)
-pixels.
+(continuous filter retrained from the newest sample only, ``eta = 1``) and ``mosse`` (grid peak plus parabola
+at every level). A level-``l`` pixel ``i`` sits at level-0 coordinate ``2^l (i + 0.5) - 0.5``. Positions are
+(x, y) pixels.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 import torch.nn.functional as F
-from kornia.geometry.transform import pyrdown
 from torch import Tensor, nn
 from tqdm import tqdm
 
 from data.errors import InputError
 from models.dcf import (
-    ccot_filter,
-    ccot_sample,
-    ccot_update,
     continuous_label,
-    dcf_preprocess,
-    fourier_series_peak,
+    cosine_window,
+    cubic_spline_fourier,
     gaussian_label,
-    mosse_filter,
     peak_to_sidelobe_ratio,
     response_peak,
-    shift_fourier,
 )
+from models.dcf._signal import full_frequencies, half_frequencies
+from models.dcf.continuous import fourier_series_peak_parts
+from models.dcf.dft import RealDft2
 
 METHODS = ("ccot", "ccot_ff", "mosse")
 DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
 
 
+# kornia's ``pyrdown`` (5-tap binomial blur, then 2x2 averaging) as one separable 6-tap filter at stride 2
+_PYRDOWN_TAPS = (1.0, 5.0, 10.0, 10.0, 5.0, 1.0)
+
+
 def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
-    """``levels`` images ``(1, 1, H / 2^l, W / 2^l)`` of a ``(1, 1, H, W)`` frame, finest first."""
+    """``levels`` images ``(1, 1, H / 2^l, W / 2^l)`` of a ``(1, 1, H, W)`` frame, finest first.
+
+    Each level is the previous one blurred by the binomial ``[1, 4, 6, 4, 1] / 16`` (reflected borders) and
+    averaged over 2x2 blocks (as ``kornia.geometry.transform.pyrdown``), so level pixel ``i`` sits at
+    ``2 i + 0.5`` of the level below.
+    """
+    taps = torch.tensor(_PYRDOWN_TAPS, device=frame.device, dtype=frame.dtype) / 32
     pyramid = [frame]
     for _ in range(levels - 1):
-        pyramid.append(pyrdown(pyramid[-1]))
+        image = F.pad(pyramid[-1], (2, 3, 2, 3), mode="reflect")
+        image = F.conv2d(image, taps.reshape(1, 1, 6, 1), stride=(2, 1))
+        pyramid.append(F.conv2d(image, taps.reshape(1, 1, 1, 6), stride=(1, 2)))
     return pyramid
 
 
 def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
-    """Bilinear ``size x size`` patches around sub-pixel centres, in FFT order (centre pixel at index 0).
+    """Bilinear ``size x size`` patches around sub-pixel centres, natural order (centre at ``size // 2``).
 
     Args:
         image: ``(1, 1, h, w)``; centres: ``(P, 2)`` (x, y) pixels of that image (border pixels repeat
@@ -63,27 +77,33 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
         ``(P, size, size)`` patches.
     """
     h, w = image.shape[-2:]
-    off = torch.arange(size, device=centres.device, dtype=centres.dtype)
-    off = torch.remainder(off + size // 2, size) - size // 2
-    gx = (2 * (centres[:, 0, None, None] + off[None, None, :]) + 1) / w - 1
-    gy = (2 * (centres[:, 1, None, None] + off[None, :, None]) + 1) / h - 1
-    grid = torch.stack([gx.expand(-1, size, size), gy.expand(-1, size, size)], -1)
+    scale = torch.tensor([2.0 / w, 2.0 / h], device=centres.device, dtype=centres.dtype)
+    off = torch.arange(size, device=centres.device, dtype=centres.dtype) - size // 2
+    offsets = torch.stack(torch.meshgrid(off, off, indexing="xy"), -1) * scale  # (size, size, 2) as (x, y)
+    grid = offsets + ((centres + 0.5) * scale - 1)[:, None, None, :]
     patches = F.grid_sample(
         image, grid.reshape(1, -1, size, 2), mode="bilinear", padding_mode="border", align_corners=False
     )
     return patches.reshape(-1, size, size)
 
 
+def _per_level(value: int | Iterable[int], levels: int, name: str) -> tuple[int, ...]:
+    values = (value,) * levels if isinstance(value, int) else tuple(int(v) for v in value)
+    if len(values) != levels:
+        raise InputError(f"{name} needs one value per pyramid level ({levels}), got {values}")
+    return values
+
+
 @dataclass
 class TrackerState:
-    """Tracker state: positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)`` and the filters' numerators
-    ``A`` ``(L, P, N, N // 2 + 1)`` complex and denominators ``B`` (same shape, real)."""
+    """Tracker state: positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)`` and per pyramid level (finest
+    first) the filters ``(3, P, N, K)``: real and imaginary parts of the numerators ``A`` and the denominators
+    ``B`` of the level's ``N x K`` half spectra."""
 
     positions: Tensor
     lost: Tensor
     psr: Tensor
-    A: Tensor
-    B: Tensor
+    filters: tuple[Tensor, ...]
 
 
 class PointTracker(nn.Module):
@@ -91,11 +111,13 @@ class PointTracker(nn.Module):
 
     Args:
         method: ``ccot``, ``ccot_ff`` or ``mosse``.
-        levels: pyramid levels (coarse-to-fine search). patch_size: odd patch side per level (px of that
-        level).
+        levels: pyramid levels (coarse-to-fine search). patch_size: odd patch side (px of that level), one
+        for all levels or one per level, finest first. The coarsest patch bounds the largest motion (about a
+        quarter of its side, in coarsest-level pixels); the finer levels only correct the coarser estimate.
         sigma: label std in px of each level. eta: learning rate (default per method: 0.1, 1.0, 0.125).
         reg_rel: regulariser relative to the mean sample energy (``beta^2`` / ``eps``).
-        newton_iterations: sub-pixel steps for the continuous variants.
+        newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
+        level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
         psr_threshold: points whose level-0 PSR falls below this are lost. psr_exclude: PSR exclusion window.
     """
 
@@ -103,42 +125,42 @@ class PointTracker(nn.Module):
         self,
         method: str = "ccot",
         levels: int = 3,
-        patch_size: int = 33,
+        patch_size: int | tuple[int, ...] = (21, 15, 25),
         sigma: float = 1.0,
         eta: float | None = None,
         reg_rel: float = 1e-2,
-        newton_iterations: int = 5,
+        newton_iterations: int | tuple[int, ...] = (2, 0, 0),
         psr_threshold: float = 5.0,
         psr_exclude: int = 7,
     ) -> None:
         super().__init__()
         if method not in METHODS:
             raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
-        if patch_size % 2 == 0 or patch_size < psr_exclude + 2:
-            raise InputError(f"patch_size must be odd and larger than the PSR window, got {patch_size}")
-        self.method, self.levels, self.size = method, levels, patch_size
+        self.sizes = _per_level(patch_size, levels, "patch_size")
+        if any(n % 2 == 0 for n in self.sizes) or self.sizes[0] < psr_exclude + 2:
+            raise InputError(f"patch sizes must be odd and larger than the PSR window, got {self.sizes}")
+        self.newton = (0,) * levels if method == "mosse" else _per_level(newton_iterations, levels, "newton")
+        self.method, self.levels = method, levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
-        self.reg_rel, self.newton_iterations = reg_rel, newton_iterations
-        self.psr_threshold, self.psr_exclude = psr_threshold, psr_exclude
-        shape = (patch_size, patch_size)
-        if method == "mosse":
-            label = torch.fft.rfft2(gaussian_label(shape, sigma)).real
-        else:
-            label = continuous_label(shape, sigma)
-        self.register_buffer("label", label, persistent=False)
+        self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
+        self.dfts = nn.ModuleList()
+        for level, n in enumerate(self.sizes):
+            window = cosine_window((n,), dtype=torch.float64).roll(n // 2)  # natural order
+            if method == "mosse":
+                scale = None
+                label = torch.fft.rfft2(gaussian_label((n, n), sigma, dtype=torch.float64)).real
+            else:  # Fourier coefficients of the cubic-spline interpolated sample (eq. 3.6) and of the label
+                scale = cubic_spline_fourier(full_frequencies(n, None, torch.float64) / n) / n
+                label = continuous_label((n, n), sigma, dtype=torch.float64)
+            self.dfts.append(RealDft2(n, window, scale))
+            self.register_buffer(f"label_{level}", label.float(), persistent=False)  # (N, K)
 
-    def _spectrum(self, patches: Tensor) -> Tensor:
-        """Normalise, window and transform ``(P, N, N)`` patches to ``(P, N, K)`` spectra."""
-        x = dcf_preprocess(patches, 2, log=False, normalize=True, window=True)
-        return torch.fft.rfft2(x) if self.method == "mosse" else ccot_sample(x, 2)
-
-    def _samples(self, pyramid: list[Tensor], positions: Tensor) -> Tensor:
-        """Spectra ``(L, P, N, K)`` of the patches around ``positions`` at every level."""
-        spectra = []
-        for level, image in enumerate(pyramid):
-            centres = (positions + 0.5) / 2**level - 0.5
-            spectra.append(self._spectrum(extract_patches(image, centres, self.size)))
-        return torch.stack(spectra)
+    def _sample(self, image: Tensor, centres: Tensor, level: int) -> tuple[Tensor, Tensor]:
+        """Spectrum (real, imaginary ``(P, N, K)``) of the normalised, windowed patches around ``centres``
+        ``(P, 2)`` (pixels of that level)."""
+        x = extract_patches(image, centres, self.sizes[level])
+        x = x - x.mean((-2, -1), keepdim=True)  # torch.var_mean is several times slower on small patches
+        return self.dfts[level](x / (x.square().mean((-2, -1), keepdim=True).sqrt() + 1e-5))
 
     @staticmethod
     def _frame(frame: Tensor) -> Tensor:
@@ -153,6 +175,14 @@ class PointTracker(nn.Module):
         x, y = positions[:, 0], positions[:, 1]
         return torch.isfinite(positions).all(-1) & (x >= 0) & (x <= w - 1) & (y >= 0) & (y <= h - 1)
 
+    def _learn(self, filters: Tensor | None, zr: Tensor, zi: Tensor, eta: Tensor, level: int) -> Tensor:
+        """Blend one sample per point (spectrum ``(P, N, K)``) into a level's filters with weight ``eta``
+        ``(P,)`` (MOSSE's running update; for C-COT the sample memory with exponentially decaying weights, kept
+        as running sums). ``filters`` None starts from scratch."""
+        y = getattr(self, f"label_{level}")
+        new = torch.stack([zr * y, -zi * y, zr.square() + zi.square()])
+        return new if filters is None else torch.lerp(filters, new, eta[:, None, None])
+
     def init(self, frame: Tensor, points: Tensor) -> TrackerState:
         """Train every point's filters on ``frame`` ``(H, W)``; points ``(P, 2)`` outside the image start
         lost."""
@@ -164,72 +194,74 @@ class PointTracker(nn.Module):
             raise InputError("the point set is empty: nothing to track")
         lost = ~self._inside(points, frame)
         positions = torch.where(lost.unsqueeze(-1), torch.zeros_like(points), points)
-        Z = self._samples(image_pyramid(frame, self.levels), positions)
-        A = Z.conj() * self.label
-        B = Z.real.square() + Z.imag.square()
+        pyramid = image_pyramid(frame, self.levels)
+        ones = torch.ones_like(points[:, 0])
+        filters = tuple(
+            self._learn(None, *self._sample(pyramid[lv], (positions + 0.5) / 2**lv - 0.5, lv), ones, lv)
+            for lv in range(self.levels)
+        )
         psr = torch.full_like(points[:, 0], float("inf"))
-        return TrackerState(torch.where(lost.unsqueeze(-1), points, positions), lost, psr, A, B)
+        return TrackerState(torch.where(lost.unsqueeze(-1), points, positions), lost, psr, filters)
 
-    def forward(
-        self, frame: Tensor, positions: Tensor, lost: Tensor, A: Tensor, B: Tensor
-    ) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
+    def _peak(self, spectrum: Tensor, score: Tensor, level: int) -> Tensor:
+        """Sub-pixel shift ``(P, 2)`` (x, y) of the score maximum at ``level`` (``spectrum``: ``[re | im]``)."""
+        if self.newton[level] == 0:
+            return response_peak(score, 2)[0]
+        n, k = self.sizes[level], self.sizes[level] // 2 + 1
+        return fourier_series_peak_parts(spectrum[..., :k], spectrum[..., k:], (n, n), self.newton[level], score)[0]
+
+    def _shift(self, zr: Tensor, zi: Tensor, shift: Tensor, level: int) -> tuple[Tensor, Tensor]:
+        """Spectra of samples moved by ``shift`` ``(P, 2)`` (x, y) level pixels: ``x'(t) = x(t + shift)``."""
+        n = self.sizes[level]
+        ky = full_frequencies(n, shift.device, shift.dtype) * (2 * math.pi / n)
+        kx = half_frequencies(n, shift.device, shift.dtype) * (2 * math.pi / n)
+        ay, ax = ky * shift[:, 1:2], kx * shift[:, 0:1]
+        cy, sy = torch.cos(ay)[:, :, None], torch.sin(ay)[:, :, None]
+        cx, sx = torch.cos(ax)[:, None, :], torch.sin(ax)[:, None, :]
+        pr, pi = cy * cx - sy * sx, sy * cx + cy * sx
+        return zr * pr - zi * pi, zr * pi + zi * pr
+
+    def forward(self, frame: Tensor, positions: Tensor, lost: Tensor, *filters: Tensor) -> tuple[Tensor, ...]:
         """One tracking step (exportable: real tensors in and out).
 
         Args:
             frame: ``(1, 1, H, W)`` gray frame. positions: ``(P, 2)``. lost: ``(P,)`` bool.
-            A: ``(L, P, N, K, 2)`` real view of the complex numerators. B: ``(L, P, N, K)`` denominators.
+            filters: per level, finest first, ``(3, P, N, K)`` (see :class:`TrackerState`).
         Returns:
-            positions, lost, psr ``(P,)``, A, B after this frame.
+            positions, lost, psr ``(P,)`` and the filters after this frame.
         """
-        # slicing a complex tensor does not export, so slice the real view first
-        A = [torch.view_as_complex(A[level]) for level in range(self.levels)]
         pyramid = image_pyramid(frame, self.levels)
-        size = (self.size, self.size)
         start = torch.where(lost.unsqueeze(-1), torch.zeros_like(positions), positions)
         d = torch.zeros_like(positions)
         spectra, centres = [], []
         for level in reversed(range(self.levels)):
             centre = (start + d + 0.5) / 2**level - 0.5
-            Z = self._spectrum(extract_patches(pyramid[level], centre, self.size))
-            if self.method == "mosse":
-                S = mosse_filter(A[level], B[level], 2, eps_rel=self.reg_rel) * Z
-                score = torch.fft.irfft2(S, s=size)
-                delta, _ = response_peak(score, 2)
-            else:
-                S = ccot_filter(A[level], B[level], 2, beta2_rel=self.reg_rel) * Z
-                score = torch.fft.irfft2(S, s=size)
-                delta, _ = fourier_series_peak(S, size, self.newton_iterations, grid=score)
-            d = d + 2**level * delta
-            spectra.insert(0, Z)
+            zr, zi = self._sample(pyramid[level], centre, level)
+            ar, ai, b = filters[level].unbind(0)
+            inv = 1 / (b + self.reg_rel * b.mean((-2, -1), keepdim=True))
+            spectrum = torch.cat([ar * zr - ai * zi, ar * zi + ai * zr], -1) * inv.repeat(1, 1, 2)
+            score = self.dfts[level].inverse(spectrum)
+            d = d + 2**level * self._peak(spectrum, score, level)
+            spectra.insert(0, (zr, zi))
             centres.insert(0, centre)
         psr = peak_to_sidelobe_ratio(score, 2, self.psr_exclude)
         moved = start + d
         lost = lost | ~self._inside(moved, frame) | ~(psr >= self.psr_threshold)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
-        # Training samples at the new positions: the coarsest level moved most and is extracted again; the finer
-        # levels moved by at most a few pixels and reuse their search samples, shifted in the Fourier domain (C-COT).
+        # Training samples at the new positions: the search samples shifted in the Fourier domain (as C-COT
+        # centres its samples on the target), cheaper than extracting again and at least as accurate.
         target = torch.where(lost.unsqueeze(-1), start, moved)
-        Z = []
+        eta = torch.where(lost, torch.zeros_like(psr), torch.full_like(psr, self.eta))
+        updated = []
         for level in range(self.levels):
-            if level == self.levels - 1:
-                coarse = (target + 0.5) / 2**level - 0.5
-                Z.append(self._spectrum(extract_patches(pyramid[level], coarse, self.size)))
-            else:
-                shift = (target + 0.5) / 2**level - 0.5 - centres[level]
-                Z.append(shift_fourier(spectra[level], shift, size))
-        eta = torch.where(lost, torch.zeros_like(psr), torch.full_like(psr, self.eta)).reshape(1, -1, 1, 1)
-        # MOSSE's running update has the same form as the continuous filter's sample weighting.
-        updated = [
-            ccot_update(A[level], B[level], Z[level], self.label, eta[0]) for level in range(self.levels)
-        ]
-        A = torch.stack([torch.view_as_real(a) for a, _ in updated])
-        return positions, lost, psr, A, torch.stack([b for _, b in updated])
+            shift = (target + 0.5) / 2**level - 0.5 - centres[level]
+            updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
+        return positions, lost, psr, *updated
 
     def step(self, frame: Tensor, state: TrackerState) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``."""
-        frame = self._frame(frame)
-        out = self(frame, state.positions, state.lost, torch.view_as_real(state.A), state.B)
-        return TrackerState(out[0], out[1], out[2], torch.view_as_complex(out[3]), out[4])
+        positions, lost, psr, *filters = self(self._frame(frame), state.positions, state.lost, *state.filters)
+        return TrackerState(positions, lost, psr, tuple(filters))
 
     @torch.no_grad()
     def track(
@@ -240,7 +272,7 @@ class PointTracker(nn.Module):
         Returns:
             tracks ``(T, P, 2)``, lost ``(T, P)`` and PSR ``(T, P)`` (inf in frame 0).
         """
-        param = self.label
+        param = self.label_0
         tracks, lost, psr, state, shape = [], [], [], None, None
         for t, frame in enumerate(tqdm(frames, desc=f"track {self.method}", disable=not progress)):
             frame = torch.as_tensor(frame, dtype=param.dtype, device=param.device)

