@@ -147,6 +147,7 @@ class SyntheticVOSDataModule(L.LightningDataModule):
         train_samples: samples (= videos) per epoch; val_videos / test_videos: held-out videos.
         n_frames: frames of evaluation videos; height, width: frame size.
         n_objects / n_distractors: per video (training samples pick one object).
+        object_scale: (low, high) object radius as a fraction of the short side (``synthetic_video``).
         eval_objects: objects per evaluation video.
         max_gap: test frames are drawn from the ``max_gap`` frames after the reference.
     """
@@ -161,6 +162,7 @@ class SyntheticVOSDataModule(L.LightningDataModule):
         width: int = 224,
         n_objects: int = 1,
         n_distractors: int = 1,
+        object_scale: tuple[float, float] = (0.15, 0.3),
         eval_objects: int = 1,
         max_gap: int = 8,
         n_test_frames: int = 2,
@@ -173,7 +175,8 @@ class SyntheticVOSDataModule(L.LightningDataModule):
 
     def _video_args(self, n_objects: int) -> dict:
         h = self.hparams
-        return {"height": h.height, "width": h.width, "n_objects": n_objects, "n_distractors": h.n_distractors}
+        return {"height": h.height, "width": h.width, "n_objects": n_objects, "n_distractors": h.n_distractors,
+                "object_scale": tuple(h.object_scale)}
 
     def train_dataloader(self) -> DataLoader:
         h = self.hparams

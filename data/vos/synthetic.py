@@ -70,6 +70,7 @@ def synthetic_video(
     late_objects: bool = False,
     motion: float = 1.0,
     times: list[int] | None = None,
+    object_scale: tuple[float, float] | list[float] = (0.15, 0.3),
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """One synthetic video.
 
@@ -81,6 +82,8 @@ def synthetic_video(
         late_objects: if True, objects 2.. may first appear after frame 0.
         motion: scales speeds, rotations and scale changes (0 = static objects).
         times: render only these frame indices (same pixels as in the full video); None = all n_frames.
+        object_scale: (low, high) range of an object's base radius as a fraction of min(height, width); the
+            drawn shape reaches ~0.9 of it (default (0.15, 0.3): objects 27-54 % of the short side across).
 
     Returns:
         frames (T, 3, H, W) float32 RGB in [0, 1] and labels (T, H, W) int64 (0 = background); T = len(times)
@@ -91,6 +94,8 @@ def synthetic_video(
             f"synthetic video needs n_frames >= 1, size >= 16 px, n_objects >= 1, n_distractors >= 0; got "
             f"{n_frames}, {height}x{width}, {n_objects}, {n_distractors}"
         )
+    if len(object_scale) != 2 or not 0 < object_scale[0] <= object_scale[1] <= 1:
+        raise InputError(f"synthetic object_scale must be (low, high) with 0 < low <= high <= 1, got {object_scale}")
     gen = torch.Generator().manual_seed(seed)
     idx = torch.arange(n_frames) if times is None else torch.tensor(times, dtype=torch.int64)
     if idx.numel() == 0 or idx.min() < 0 or idx.max() >= n_frames:
@@ -124,7 +129,7 @@ def synthetic_video(
     for layer in order:
         label = layer + 1 if layer < n_objects else 0
         alpha = _shape(gen, 64)
-        r0 = rnd(0.15, 0.3) * size
+        r0 = rnd(float(object_scale[0]), float(object_scale[1])) * size
         start = int(rnd(1, n_frames / 2)) if late_objects and 1 <= layer < n_objects and n_frames > 2 else 0
         speed = rnd(0.005, 0.025) * width * motion
         heading = rnd(0, 2 * math.pi)

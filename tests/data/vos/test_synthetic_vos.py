@@ -50,3 +50,21 @@ def test_rendering_selected_times_matches_full_video() -> None:
     full = synthetic_video(9, n_frames=10, height=40, width=56, n_objects=2, late_objects=True)
     part = synthetic_video(9, n_frames=10, height=40, width=56, n_objects=2, late_objects=True, times=[0, 4, 9])
     assert torch.equal(part[0], full[0][[0, 4, 9]]) and torch.equal(part[1], full[1][[0, 4, 9]])
+
+
+def test_object_scale_sets_object_size() -> None:
+    """A static single object drawn with radius fraction s lies within 0.9 s * min(H, W) of its centre; its
+    largest half-extent is at least half of that (aspect >= 0.5), and the default range is unchanged."""
+    h, w = 64, 96
+    for seed in range(4):
+        for s in (0.15, 0.35):
+            _, labels = synthetic_video(seed, n_frames=1, height=h, width=w, n_distractors=0, motion=0,
+                                        object_scale=(s, s))
+            yx = torch.nonzero(labels[0] == 1).float() + 0.5
+            extent = (yx.max(0).values - yx.min(0).values + 1).max()
+            assert 0.45 * s * h <= extent <= 2 * 0.9 * s * h + 2
+    default = synthetic_video(3, n_frames=2, height=h, width=w)
+    explicit = synthetic_video(3, n_frames=2, height=h, width=w, object_scale=(0.15, 0.3))
+    assert torch.equal(default[0], explicit[0]) and torch.equal(default[1], explicit[1])
+    with pytest.raises(InputError, match="object_scale"):
+        synthetic_video(0, object_scale=(0.5, 0.2))
