@@ -17,11 +17,11 @@ from pathlib import Path
 
 import lightning as L
 import torch
-import torch.nn.functional as F
 
 from models.backbones import ResNetBackbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder
+from models.vos.losses import segmentation_loss
 from models.vos.metrics import evaluate_sequence, summarize, write_csv
 from models.vos.optimizer import GaussNewtonCG, build_optimizer
 from models.vos.target_model import apply_filter, project, target_model_init
@@ -39,6 +39,8 @@ class FRTMSegmentation(L.LightningModule):
         feature_layer: stage the target model reads (layer3, stride 16).
         train_channels, train_num_aug, train_reg, train_schedule, train_optimizer: target model fitted in
             training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
+        loss, pos_weight, iou_weight: decoder loss (``models.vos.losses.segmentation_loss``; FRTM: plain
+            ``bce``; ``bce_iou`` adds a soft-IoU term against the collapse to background on small objects).
         lr, weight_decay, lr_step, lr_gamma: Adam (amsgrad) and StepLR (FRTM 1e-3, 1e-5, 127, 0.1).
         tracker: keyword arguments of ``FRTMTracker`` for validation, test and inference.
         seed: seeds augmentation and filter initialisation.
@@ -57,6 +59,9 @@ class FRTMSegmentation(L.LightningModule):
         train_reg: tuple[float, float] = (1e-5, 1e-4),
         train_schedule: tuple[int, ...] = (5, 10, 10, 10, 10),
         train_optimizer: str = "gauss_newton",
+        loss: str = "bce",
+        pos_weight: float = 1.0,
+        iou_weight: float = 1.0,
         lr: float = 1e-3,
         weight_decay: float = 1e-5,
         lr_step: int = 127,
@@ -112,7 +117,8 @@ class FRTMSegmentation(L.LightningModule):
         x = feats[self.hparams.feature_layer]
         score = apply_filter(project(x.view(b, t, *x.shape[1:]), wp), wf)
         logits = self.decoder(score.flatten(0, 1)[:, None], feats, tuple(test.shape[-2:]))
-        loss = F.binary_cross_entropy_with_logits(logits[:, 0], batch["test_masks"].flatten(0, 1))
+        h = self.hparams
+        loss = segmentation_loss(logits[:, 0], batch["test_masks"].flatten(0, 1), h.loss, h.pos_weight, h.iou_weight)
         with torch.no_grad():
             pred = logits[:, 0] > 0
             gt = batch["test_masks"].flatten(0, 1) > 0.5
