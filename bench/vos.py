@@ -6,7 +6,9 @@
 Methods: ``frtm`` (target model + decoder), ``target_model_only`` (the upsampled target-model score
 thresholded at 0.5, same memory updates) and ``first_frame_copy`` (the first mask repeated). Each gets ``jf``,
 ``j``, ``f`` (DAVIS protocol, means over objects), ``fps`` and milliseconds per frame per component
-(backbone, target_model, decoder, update, init; init is per video, spread over its frames). ``--speed``
+(backbone, target_model, decoder, update, init; init is per video, spread over its frames). Synthetic videos
+take their size, objects per video, distractors and object scale from the checkpoint's data module (the
+configuration it was trained with; explicit options override), on the held-out ``test`` seeds. ``--speed``
 adds FPS of the tracker at 240p and 480p (synthetic frames) for the checkpoint's backbone. Without
 ``--ckpt`` the networks are untrained (random weights): useful for speed only.
 Prints one JSON object with ``--json``, else a table.
@@ -88,6 +90,25 @@ def speed(model: FRTMSegmentation, n_frames: int = 10) -> dict:
     return out
 
 
+SYNTHETIC_DEFAULTS = {"height": 96, "width": 160, "objects": 2, "distractors": 1, "object_scale": (0.15, 0.3)}
+_DATAMODULE_KEYS = {"height": "height", "width": "width", "objects": "eval_objects", "distractors": "n_distractors",
+                    "object_scale": "object_scale"}
+
+
+def synthetic_settings(args: argparse.Namespace) -> dict:
+    """Video settings for ``--synthetic``: explicit options, else the checkpoint's data module, else defaults."""
+    stored = {}
+    if args.ckpt:
+        hp = torch.load(args.ckpt, map_location="cpu", weights_only=False).get("datamodule_hyper_parameters", {})
+        stored = {k: hp[v] for k, v in _DATAMODULE_KEYS.items() if v in hp}
+    out = {}
+    for k, default in SYNTHETIC_DEFAULTS.items():
+        given = getattr(args, k)
+        out[k] = given if given is not None else stored.get(k, default)
+    out["object_scale"] = tuple(float(v) for v in out["object_scale"])
+    return out
+
+
 def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Tensor, torch.Tensor]]]:
     if args.davis:
         videos = []
@@ -96,9 +117,13 @@ def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Te
             frames, labels = seq.load(args.max_frames)
             videos.append((seq.name, frames, labels))
         return f"davis:{Path(args.davis).name}/{args.split}@{args.resolution}", videos
-    videos = synthetic_videos("test", args.videos, 0, n_frames=args.max_frames or 20, height=args.height,
-                              width=args.width, n_objects=args.objects, n_distractors=1)
-    return f"synthetic:{args.videos}x{args.height}x{args.width}", videos
+    v = synthetic_settings(args)
+    videos = synthetic_videos("test", args.videos, 0, n_frames=args.max_frames or 20, height=v["height"],
+                              width=v["width"], n_objects=v["objects"], n_distractors=v["distractors"],
+                              object_scale=v["object_scale"])
+    name = (f"synthetic:{args.videos}x{v['height']}x{v['width']} objects {v['objects']} distractors "
+            f"{v['distractors']} object_scale {list(v['object_scale'])}")
+    return name, videos
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -155,9 +180,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--sequences", help="comma-separated subset of the split's sequences")
     p.add_argument("--synthetic", action="store_true", help="held-out synthetic videos (the default dataset)")
     p.add_argument("--videos", type=int, default=8, help="synthetic videos (default 8)")
-    p.add_argument("--height", type=int, default=96)
-    p.add_argument("--width", type=int, default=160)
-    p.add_argument("--objects", type=int, default=2, help="objects per synthetic video (default 2)")
+    p.add_argument("--height", type=int, help="synthetic frame height (default: checkpoint's data, else 96)")
+    p.add_argument("--width", type=int, help="synthetic frame width (default: checkpoint's data, else 160)")
+    p.add_argument("--objects", type=int, help="objects per synthetic video (default: checkpoint's data, else 2)")
+    p.add_argument("--distractors", type=int, help="distractors per synthetic video (checkpoint's data, else 1)")
+    p.add_argument("--object-scale", type=float, nargs=2, metavar=("LOW", "HIGH"),
+                   help="object radius range as a fraction of the short side (checkpoint's data, else 0.15 0.3)")
     p.add_argument("--max-frames", type=int, help="cut videos to this many frames")
     p.add_argument("--backbone", default="resnet18", help="backbone of the untrained model (no --ckpt)")
     p.add_argument("--speed", action="store_true", help="measure FPS at 240p and 480p")

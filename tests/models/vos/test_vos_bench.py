@@ -1,6 +1,8 @@
 """bench/vos.py: the first-frame-copy baseline and the JSON layout on a tiny synthetic video set."""
 
-from bench.vos import load_model, parse_args, run_method
+import torch
+
+from bench.vos import load_model, parse_args, run_method, synthetic_settings
 from data.vos.datamodule import synthetic_videos
 from models.vos.metrics import evaluate_sequence
 
@@ -17,3 +19,13 @@ def test_first_frame_copy_and_target_model_only() -> None:
     assert set(tm) == {"jf", "j", "f", "fps", "ms_per_frame", "per_sequence"} and tm["fps"] > 0
     assert 0 <= tm["jf"] <= 1 and set(tm["per_sequence"][videos[0][0]]) == {"1", "2"}
     assert parse_args(["--davis", "x", "--split", "val"]).resolution == "480p"
+
+
+def test_synthetic_settings_follow_the_checkpoint_data(tmp_path) -> None:
+    ckpt = tmp_path / "fake.ckpt"
+    torch.save({"datamodule_hyper_parameters": {"height": 64, "width": 96, "eval_objects": 3, "n_distractors": 0,
+                                                "object_scale": [0.25, 0.45]}}, ckpt)
+    got = synthetic_settings(parse_args(["--ckpt", str(ckpt), "--synthetic", "--width", "112"]))
+    assert got == {"height": 64, "width": 112, "objects": 3, "distractors": 0, "object_scale": (0.25, 0.45)}
+    default = synthetic_settings(parse_args(["--synthetic"]))
+    assert default == {"height": 96, "width": 160, "objects": 2, "distractors": 1, "object_scale": (0.15, 0.3)}
