@@ -80,14 +80,19 @@ class FeaturesGraph(nn.Module):
 
 
 class InitGraph(nn.Module):
+    """Joint W_p/W_f fit; float32 in and out, computed in the tracker's ``optimizer_dtype``."""
+
     def __init__(self, tracker: FRTMTracker) -> None:
         super().__init__()
         self.optimizer = tracker.init_optimizer
         self.pixel_weighting = tracker.pixel_weighting
+        self.dtype = getattr(torch, tracker.optimizer_dtype)
 
     def forward(self, x, labels, pixel_weights, gamma, wp, wf):
-        wp, wf, _, _ = self.optimizer(x, labels, pixel_weights if self.pixel_weighting else None, gamma, wf, wp)
-        return wp, wf
+        dt, keep = self.dtype, x.dtype
+        v = pixel_weights.to(dt) if self.pixel_weighting else None
+        wp, wf, _, _ = self.optimizer(x.to(dt), labels.to(dt), v, gamma.to(dt), wf.to(dt), wp.to(dt))
+        return wp.to(keep), wf.to(keep)
 
 
 class InsertGraph(nn.Module):
@@ -102,17 +107,21 @@ class InsertGraph(nn.Module):
 
 
 class UpdateGraph(nn.Module):
+    """One W_f update with the CG state; float32 in and out, computed in the tracker's ``optimizer_dtype``."""
+
     def __init__(self, tracker: FRTMTracker) -> None:
         super().__init__()
         self.optimizer = tracker.update_optimizer
+        self.dtype = getattr(torch, tracker.optimizer_dtype)
 
     def forward(self, features, labels, pixel_weights, weights, wf, p, rho, r_prev):
+        dt, keep = self.dtype, wf.dtype
+        args = (features.to(dt), labels.to(dt), pixel_weights.to(dt), weights.to(dt), wf.to(dt))
         if isinstance(self.optimizer, SteepestDescent):
-            _, wf, _, _ = self.optimizer(features, labels, pixel_weights, weights, wf)
-            return wf, p, rho, r_prev
-        _, wf, (p, rho, r_prev), _ = self.optimizer(features, labels, pixel_weights, weights, wf,
-                                                    state=([p], rho, [r_prev]))
-        return wf, p[0], rho, r_prev[0]
+            _, wf, _, _ = self.optimizer(*args)
+            return wf.to(keep), p, rho, r_prev
+        _, wf, (p, rho, r_prev), _ = self.optimizer(*args, state=([p.to(dt)], rho.to(dt), [r_prev.to(dt)]))
+        return wf.to(keep), p[0].to(keep), rho.to(keep), r_prev[0].to(keep)
 
 
 def _settings(tracker: FRTMTracker) -> dict:
@@ -121,7 +130,8 @@ def _settings(tracker: FRTMTracker) -> dict:
         "num_aug": tracker.num_aug, "memory_size": tracker.memory_size, "learning_rate": tracker.learning_rate,
         "update_every": tracker.update_every, "pixel_weighting": tracker.pixel_weighting,
         "fg_target": tracker.fg_target, "min_update_pixels": tracker.min_update_pixels,
-        "label_stride": tracker.label_stride, "use_decoder": tracker.use_decoder, "seed": tracker.seed,
+        "label_stride": tracker.label_stride, "optimizer_dtype": tracker.optimizer_dtype,
+        "use_decoder": tracker.use_decoder, "seed": tracker.seed,
         "in_channels": tracker.backbone.channels[tracker.feature_layer],
     }
 
@@ -238,10 +248,29 @@ class OnnxFRTMTracker(FRTMTracker):
         wf, p, rho, r_prev = (torch.cat(col) for col in zip(*rows, strict=True))
         self.wf, self.cg_state = wf, (p, rho, r_prev)
 
+def mask_parity(
+    tracker: FRTMTracker, onnx_dir: str | Path, videos: list[tuple[str, torch.Tensor, torch.Tensor]]
+) -> list[float]:
+    """Per frame and object IoU between the PyTorch tracker's and the onnxruntime tracker's masks, each run
+    closed loop (own memory and filter updates) from the first-frame labels; frames where neither segments
+    the object are skipped (IoU undefined)."""
+    ious = []
+    ox = OnnxFRTMTracker(onnx_dir)
+    for _, frames, labels in videos:
+        ids = [i for i in labels[0].unique().tolist() if i not in (0, 255)]
+        ref = list(tracker.segment(frames, {0: labels[0]}))
+        got = list(ox.segment(frames, {0: labels[0]}))
+        for a, b in zip(ref, got, strict=True):
+            for k in ids:
+                union = int(((a == k) | (b == k)).sum())
+                if union:
+                    ious.append(int(((a == k) & (b == k)).sum()) / union)
+    return ious
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W]``: export and parity-check."""
+    """``python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check-videos N]``: export,
+    then optionally compare the onnxruntime tracker's masks with PyTorch's on N held-out synthetic videos."""
     import argparse
     import sys
 
@@ -250,6 +279,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--height", type=int, default=96, help="example frame height (the graphs accept any)")
     p.add_argument("--width", type=int, default=160, help="example frame width")
+    p.add_argument("--check-videos", type=int, default=0,
+                   help="mask parity on this many held-out synthetic test videos (bench/vos.py's, checkpoint's data)")
+    p.add_argument("--check-frames", type=int, default=20, help="frames per parity video")
     args = p.parse_args(argv)
     from models.vos.inference import load_tracker
 
@@ -261,6 +293,15 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     for name, path in paths.items():
         print(f"{name:>9}: {path}")
+    if args.check_videos > 0:
+        from bench.vos import load_videos, parse_args
+
+        bench_args = ["--ckpt", args.ckpt, "--synthetic", "--videos", str(args.check_videos), "--max-frames",
+                      str(args.check_frames)]
+        dataset, videos = load_videos(parse_args(bench_args))
+        ious = torch.tensor(mask_parity(tracker, args.out, videos))
+        print(f"mask parity onnxruntime vs PyTorch on {dataset}: {len(ious)} frame-objects, IoU mean "
+              f"{ious.mean():.4f}, min {ious.min():.4f}, below 0.99: {int((ious < 0.99).sum())}")
     return 0
 
 

@@ -10,7 +10,9 @@ with sample weights gamma, residual (pixel) weights v and U the bilinear upsampl
 the label resolution. Every operator below is a convolution, a transposed convolution, an einsum or a matrix
 product, so Jacobian (J d) and transposed-Jacobian (J^T r) products need no autograd: the optimizer runs under
 ``torch.inference_mode`` and exports to ONNX. Everything is batched over B independent problems (objects or
-videos); the per-problem filters are applied as grouped convolutions.
+videos); the per-problem filters are applied as grouped convolutions in float32 and, in float64, as k^2
+shifted einsums (same values; ONNX Runtime's CPU provider has no float64 convolution, and the tracker runs its
+optimizer in float64, see ``FRTMTracker``).
 
 Shapes: features x (B, K, D, h, w); projected features z (B, K, C, h, w); scores s (B, K, h, w); labels,
 residual weights (B, K, H, W); sample weights gamma (B, K); W_p (B, C, D); W_f (B, C, k, k).
@@ -37,10 +39,19 @@ def project_grad(gz: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return torch.einsum("bkchw,bkdhw->bcd", gz, x)
 
 
+def _shifted(x: torch.Tensor, pad: int, dy: int, dx: int, h: int, w: int) -> torch.Tensor:
+    """The (h, w) window at offset (dy, dx) of x (..., h', w') zero-padded by ``pad`` on each side."""
+    return F.pad(x, (pad, pad, pad, pad))[..., dy : dy + h, dx : dx + w]
+
+
 def apply_filter(z: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
     """W_f * z as a grouped convolution (zero padding, same size): (B, K, C, h, w), (B, C, k, k) -> (B, K, h, w)."""
     b, k, c, h, w = z.shape
     pad = wf.shape[-1] // 2
+    if z.dtype == torch.float64:  # s = sum_(dy, dx) <W_f[:, dy, dx], z shifted by (dy - pad, dx - pad)>
+        n = wf.shape[-1]
+        return sum(torch.einsum("bkchw,bc->bkhw", _shifted(z, pad, dy, dx, h, w), wf[:, :, dy, dx])
+                   for dy in range(n) for dx in range(n))
     out = F.conv2d(z.transpose(0, 1).reshape(k, b * c, h, w), wf, padding=pad, groups=b)
     return out.transpose(0, 1)
 
@@ -50,6 +61,10 @@ def apply_filter_transpose(q: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
     b, k, h, w = q.shape
     c = wf.shape[1]
     pad = wf.shape[-1] // 2
+    if q.dtype == torch.float64:  # g[c, y, x] = sum_(dy, dx) q[y - dy + pad, x - dx + pad] W_f[c, dy, dx]
+        n = wf.shape[-1]
+        return sum(torch.einsum("bkhw,bc->bkchw", _shifted(q, pad, 2 * pad - dy, 2 * pad - dx, h, w),
+                                wf[:, :, dy, dx]) for dy in range(n) for dx in range(n))
     out = F.conv_transpose2d(q.transpose(0, 1), wf, padding=pad, groups=b)
     return out.reshape(k, b, c, h, w).transpose(0, 1)
 
@@ -58,6 +73,10 @@ def filter_grad(z: torch.Tensor, q: torch.Tensor, size: int) -> torch.Tensor:
     """Adjoint of ``apply_filter`` in W_f (a convolution of z by q): (B, K, C, h, w), (B, K, h, w) -> (B, C, k, k)."""
     b, k, c, h, w = z.shape
     pad = size // 2
+    if z.dtype == torch.float64:  # g[c, dy, dx] = sum_(k, y, x) z shifted by (dy - pad, dx - pad) * q
+        rows = [torch.stack([torch.einsum("bkchw,bkhw->bc", _shifted(z, pad, dy, dx, h, w), q)
+                             for dx in range(size)], -1) for dy in range(size)]
+        return torch.stack(rows, -2)
     out = F.conv2d(z.permute(2, 0, 1, 3, 4).reshape(c, b * k, h, w), q, padding=pad, groups=b)
     return out.transpose(0, 1)
 

@@ -64,6 +64,10 @@ class FRTMTracker(nn.Module):
         pixel_weighting: use the hinge pixel weights (fg_target 0.1).
         min_update_pixels: an object's frame enters its memory only with this many pixels above 0.5 (10).
         label_stride: memory labels are stored at 1/label_stride of the image size (1 = full resolution).
+        optimizer_dtype: precision of the W_p/W_f fits and updates (``float64``; filters and the CG state are
+            kept in the features' precision between calls). In float32 the closed loop (fit -> masks -> memory
+            -> update) amplifies rounding: a 1e-6 relative change of the input frames changed up to 7 % of an
+            object's mask on a held-out synthetic video; in float64 the masks stayed identical.
         use_decoder: False segments by thresholding the upsampled target-model score.
         seed: seeds the augmentation and the filter initialisation.
     """
@@ -87,6 +91,7 @@ class FRTMTracker(nn.Module):
         fg_target: float = 0.1,
         min_update_pixels: int = 10,
         label_stride: int = 1,
+        optimizer_dtype: str = "float64",
         use_decoder: bool = True,
         seed: int = 0,
     ) -> None:
@@ -108,6 +113,9 @@ class FRTMTracker(nn.Module):
         self.fg_target = fg_target
         self.min_update_pixels = min_update_pixels
         self.label_stride = label_stride
+        if optimizer_dtype not in ("float32", "float64"):
+            raise InputError(f"optimizer_dtype must be 'float32' or 'float64', got {optimizer_dtype!r}")
+        self.optimizer_dtype = optimizer_dtype
         self.use_decoder = use_decoder and decoder is not None
         self.seed = seed
         self.timings: dict[str, float] = defaultdict(float)
@@ -156,8 +164,10 @@ class FRTMTracker(nn.Module):
         """Joint W_p/W_f fit on the augmented samples: x (B, K, D, h, w), y, v (B, K, H', W'), gamma (B, K)."""
         b, d = x.shape[0], x.shape[2]
         wp, wf = target_model_init(b, d, self.channels, self.kernel_size, self.seed, x.dtype, x.device)
-        wp, wf, _, _ = self.init_optimizer(x, y, v if self.pixel_weighting else None, gamma, wf, wp)
-        return wp, wf
+        dt = getattr(torch, self.optimizer_dtype)
+        wp, wf, _, _ = self.init_optimizer(x.to(dt), y.to(dt), v.to(dt) if self.pixel_weighting else None,
+                                           gamma.to(dt), wf.to(dt), wp.to(dt))
+        return wp.to(x.dtype), wf.to(x.dtype)
 
     def segment_frame(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Per-object logits (N, H, W) and projected features (N, C, h, w) of one frame (3, H, W)."""
@@ -188,10 +198,19 @@ class FRTMTracker(nn.Module):
         """Re-optimise W_f on the filled memory slots."""
         n = int((self.memory.weights > 0).sum(1).max())
         mem = self.memory
-        _, self.wf, self.cg_state, _ = self.update_optimizer(
-            mem.features[:, :n], mem.labels[:, :n], mem.pixel_weights[:, :n], mem.weights[:, :n], self.wf,
-            state=self.cg_state,
+        dt, keep = getattr(torch, self.optimizer_dtype), self.wf.dtype
+        state = self.cg_state
+        if state is not None:
+            state = ([t.to(dt) for t in state[0]], state[1].to(dt), [t.to(dt) for t in state[2]])
+        _, wf, state, _ = self.update_optimizer(
+            mem.features[:, :n].to(dt), mem.labels[:, :n].to(dt), mem.pixel_weights[:, :n].to(dt),
+            mem.weights[:, :n].to(dt), self.wf.to(dt), state=state,
         )
+        self.wf = wf.to(keep)
+        if state is not None:  # steepest descent keeps no state
+            p, rho, r_prev = state
+            state = ([t.to(keep) for t in p], rho.to(keep), [t.to(keep) for t in r_prev])
+        self.cg_state = state
 
     def add_objects(self, image: torch.Tensor, labels: torch.Tensor, ids: list[int]) -> None:
         """Train target models for new objects ``ids`` whose masks are ``labels == id`` in ``image``.

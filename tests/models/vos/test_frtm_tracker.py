@@ -56,3 +56,18 @@ def test_bad_inputs(backbone) -> None:
         list(tracker.segment(frames, {0: torch.zeros_like(labels[0])}))
     with pytest.raises(InputError, match="mask of frame 0"):
         list(tracker.segment(frames, {0: labels[0, :40]}))
+
+
+def test_optimizer_precision_option(backbone) -> None:
+    """float64 fits keep float32 filters and CG state; float32 and float64 runs agree on a short slow video."""
+    frames, labels = synthetic_video(11, n_frames=4, height=64, width=96, n_distractors=0, motion=0.3)
+    preds = {}
+    for dt in ("float32", "float64"):
+        tracker = small_tracker(backbone, optimizer_dtype=dt)
+        preds[dt] = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+        assert tracker.wf.dtype == tracker.wp.dtype == torch.float32
+        assert all(t.dtype == torch.float32 for t in tracker.cg_state[0])
+    inter = ((preds["float32"] == 1) & (preds["float64"] == 1)).sum()
+    assert inter / ((preds["float32"] == 1) | (preds["float64"] == 1)).sum() > 0.9
+    with pytest.raises(InputError, match="optimizer_dtype"):
+        small_tracker(backbone, optimizer_dtype="float16")

@@ -185,3 +185,30 @@ def test_hinge_weights_follow_the_rule() -> None:
     assert v[0, 0, 0, 0].item() == pytest.approx(0.1 / a) and v[0, 0, 5, 5].item() == pytest.approx(0.9 / (1 - a))
     assert torch.allclose(v[0, 1], torch.ones(20, 20)) and torch.allclose(v[0, 2], torch.ones(20, 20))
     assert (v[0, 0] * (labels[0, 0] > 0.5)).sum().item() == pytest.approx(0.1 * 400)
+
+
+@pytest.mark.parametrize("size", [1, 3, 5])
+def test_float64_shifted_einsums_equal_per_problem_convolutions(size: int) -> None:
+    """The float64 path (shifted einsums, exportable to ONNX Runtime) against F.conv2d / conv_transpose2d run
+    per problem and sample in float64, and the adjoint identities <W_f * z, q> = <z, T(q)> = <W_f, G(z, q)>."""
+    from models.vos.target_model import apply_filter, apply_filter_transpose, filter_grad
+
+    g = torch.Generator().manual_seed(size)
+    b, k, c, h, w = 2, 3, 4, 5, 6
+    z = torch.randn(b, k, c, h, w, generator=g, dtype=torch.float64)
+    q = torch.randn(b, k, h, w, generator=g, dtype=torch.float64)
+    wf = torch.randn(b, c, size, size, generator=g, dtype=torch.float64)
+    pad = size // 2
+    s = apply_filter(z, wf)
+    t = apply_filter_transpose(q, wf)
+    for i in range(b):
+        for j in range(k):
+            ref = F.conv2d(z[i, j][None], wf[i][None], padding=pad)[0, 0]
+            torch.testing.assert_close(s[i, j], ref, rtol=1e-12, atol=1e-12)
+            ref_t = F.conv_transpose2d(q[i, j][None, None], wf[i][None], padding=pad)[0]
+            torch.testing.assert_close(t[i, j], ref_t, rtol=1e-12, atol=1e-12)
+    gf = filter_grad(z, q, size)
+    lhs = (s * q).flatten(1).sum(1)
+    torch.testing.assert_close((z * t).flatten(1).sum(1), lhs, rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close((wf * gf).flatten(1).sum(1), lhs, rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(apply_filter(z.float(), wf.float()).double(), s, rtol=1e-4, atol=1e-4)
