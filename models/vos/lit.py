@@ -18,6 +18,7 @@ from pathlib import Path
 import lightning as L
 import torch
 
+from data.errors import InputError
 from models.backbones import ResNetBackbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder
@@ -44,6 +45,9 @@ class FRTMSegmentation(L.LightningModule):
         lr, weight_decay, lr_step, lr_gamma: Adam (amsgrad) and StepLR (FRTM 1e-3, 1e-5, 127, 0.1).
         tracker: keyword arguments of ``FRTMTracker`` for validation, test and inference.
         seed: seeds augmentation and filter initialisation.
+        init_checkpoint: checkpoint of an ``FRTMSegmentation`` with the same architecture whose weights
+            ``fit`` starts from (fine-tuning, e.g. synthetic -> DAVIS). Unlike ``--ckpt_path`` it restores no
+            optimizer, epoch or scheduler state; a resumed ``--ckpt_path`` still wins.
     """
 
     def __init__(
@@ -68,6 +72,7 @@ class FRTMSegmentation(L.LightningModule):
         lr_gamma: float = 0.1,
         tracker: dict | None = None,
         seed: int = 0,
+        init_checkpoint: str | None = None,
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -80,6 +85,22 @@ class FRTMSegmentation(L.LightningModule):
         self._eval: dict[str, dict[int, dict[str, float]]] = {}
         self._frames = 0
         self._seconds = 0.0
+
+    def setup(self, stage: str) -> None:
+        """Load ``init_checkpoint``'s weights before fitting (before Lightning restores a ``--ckpt_path``)."""
+        path = self.hparams.init_checkpoint
+        if stage != "fit" or not path:
+            return
+        if not Path(path).is_file():
+            raise InputError(f"init_checkpoint {path} does not exist")
+        try:
+            state = torch.load(path, map_location="cpu", weights_only=False)["state_dict"]
+        except Exception as err:  # any unreadable file is an input error
+            raise InputError(f"init_checkpoint {path} is not a readable Lightning checkpoint: {err}") from err
+        try:
+            self.load_state_dict(state)
+        except RuntimeError as err:  # missing, unexpected or differently shaped weights
+            raise InputError(f"init_checkpoint {path} does not match this model: {err}") from err
 
     def make_tracker(self, use_decoder: bool = True, **overrides) -> FRTMTracker:
         """A tracker sharing this module's backbone and decoder (``tracker`` hyper-parameters + overrides)."""

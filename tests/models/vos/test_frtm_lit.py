@@ -1,8 +1,10 @@
 """FRTMSegmentation through the project's LightningCLI: fit and test run on tiny synthetic data."""
 
+import pytest
 import torch
 
 import train
+from data.errors import InputError
 from data.vos.datamodule import SyntheticTrainingSamples
 from models.vos.lit import FRTMSegmentation
 
@@ -38,3 +40,24 @@ def test_cli_fit_and_test(tmp_path) -> None:
     cli = train.main(["test", *common, "--trainer.limit_test_batches", "1"])
     result = cli.trainer.callback_metrics
     assert 0 <= float(result["test/jf"]) <= 1 and float(result["test/fps"]) > 0
+
+
+def test_init_checkpoint_loads_weights_for_fit_only(tmp_path):
+    torch.manual_seed(0)
+    source = FRTMSegmentation(mdim=8)
+    path = tmp_path / "source.ckpt"
+    torch.save({"state_dict": source.state_dict()}, path)
+    target = FRTMSegmentation(mdim=8, init_checkpoint=str(path))
+    target.setup("validate")  # evaluation keeps the weights it was given
+    name = next(n for n in source.state_dict() if n.startswith("decoder.") and n.endswith("weight"))
+    assert not torch.equal(target.state_dict()[name], source.state_dict()[name])
+    target.setup("fit")
+    for name, value in source.state_dict().items():
+        torch.testing.assert_close(target.state_dict()[name], value, rtol=0, atol=0)
+    with pytest.raises(InputError, match="does not match"):
+        FRTMSegmentation(mdim=16, init_checkpoint=str(path)).setup("fit")
+    with pytest.raises(InputError, match="does not exist"):
+        FRTMSegmentation(mdim=8, init_checkpoint=str(tmp_path / "missing.ckpt")).setup("fit")
+    (tmp_path / "bad.ckpt").write_bytes(b"not a checkpoint")
+    with pytest.raises(InputError, match="not a readable"):
+        FRTMSegmentation(mdim=8, init_checkpoint=str(tmp_path / "bad.ckpt")).setup("fit")
