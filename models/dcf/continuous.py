@@ -218,7 +218,7 @@ def fourier_series_peak(
 
 
 def fourier_series_peak_parts(
-    sr: Tensor, si: Tensor, size: tuple[int, ...], iterations: int, grid: Tensor
+    sr: Tensor, si: Tensor, size: tuple[int, ...], iterations: int, grid: Tensor, srsi: Tensor | None = None
 ) -> tuple[Tensor, Tensor]:
     """Sub-bin maximum of the periodic score ``s(t) = sum_k s^[k] exp(i 2 pi k . t / N)``.
 
@@ -228,7 +228,8 @@ def fourier_series_peak_parts(
 
     Args:
         sr, si: ``(..., *K)`` real and imaginary parts of the score's half spectrum; size: odd signal size
-        ``S``. grid: the sampled score ``irfftn(sr + i si)`` ``(..., *S)``.
+        ``S``. grid: the sampled score ``irfftn(sr + i si)`` ``(..., *S)``. srsi: ``cat([sr, si], -1)`` if
+        already at hand (2D).
     Returns:
         shift ``(..., ndim)`` in bins (last axis first, in ``[-N/2, N/2)``); score ``(...)`` at the peak.
     """
@@ -241,7 +242,8 @@ def fourier_series_peak_parts(
     )
     ks = _frequency_grid(size, sr.device, real_dtype)
     w = torch.where(ks[-1] == 0, torch.ones_like(ks[-1]), 2 * torch.ones_like(ks[-1]))
-    srsi = torch.cat([sr, si], -1) if ndim == 2 else None
+    if ndim == 2 and srsi is None:
+        srsi = torch.cat([sr, si], -1)
     two_pi_over_n = torch.tensor([2 * math.pi / n for n in size], device=sr.device, dtype=real_dtype)
     theta0 = t0 * two_pi_over_n
     theta = theta0

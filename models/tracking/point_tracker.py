@@ -208,7 +208,8 @@ class PointTracker(nn.Module):
         if self.newton[level] == 0:
             return response_peak(score, 2)[0]
         n, k = self.sizes[level], self.sizes[level] // 2 + 1
-        return fourier_series_peak_parts(spectrum[..., :k], spectrum[..., k:], (n, n), self.newton[level], score)[0]
+        sr, si = spectrum[..., :k], spectrum[..., k:]
+        return fourier_series_peak_parts(sr, si, (n, n), self.newton[level], score, srsi=spectrum)[0]
 
     def _shift(self, zr: Tensor, zi: Tensor, shift: Tensor, level: int) -> tuple[Tensor, Tensor]:
         """Spectra of samples moved by ``shift`` ``(P, 2)`` (x, y) level pixels: ``x'(t) = x(t + shift)``."""
