@@ -228,8 +228,9 @@ def fourier_series_peak_parts(
 
     Args:
         sr, si: ``(..., *K)`` real and imaginary parts of the score's half spectrum; size: odd signal size
-        ``S``. grid: the sampled score ``irfftn(sr + i si)`` ``(..., *S)``. srsi: ``cat([sr, si], -1)`` if
-        already at hand (2D).
+        ``S``. The spectrum may be band-limited (odd ``2M + 1`` rows ``0 .. M, -M .. -1`` and ``M + 1``
+        columns, as :class:`~models.dcf.dft.RealDft2` with ``band=M``). grid: the sampled score ``(..., *S)``.
+        srsi: ``cat([sr, si], -1)`` if already at hand (2D).
     Returns:
         shift ``(..., ndim)`` in bins (last axis first, in ``[-N/2, N/2)``); score ``(...)`` at the peak.
     """
@@ -240,7 +241,7 @@ def fourier_series_peak_parts(
     t0 = torch.stack(
         [wrap_index(i, n).to(real_dtype) for i, n in zip(_unravel(arg, size), size, strict=True)], dim=-1
     )
-    ks = _frequency_grid(size, sr.device, real_dtype)
+    ks = _frequency_grid((*sr.shape[len(sr.shape) - ndim : -1], 2 * sr.shape[-1] - 1), sr.device, real_dtype)
     w = torch.where(ks[-1] == 0, torch.ones_like(ks[-1]), 2 * torch.ones_like(ks[-1]))
     if ndim == 2 and srsi is None:
         srsi = torch.cat([sr, si], -1)

@@ -10,6 +10,12 @@ half layout with FFT-ordered rows (``ky = 0, 1, .., -1``, ``kx = 0 .. N // 2``),
 and equal ``rfft2`` of the FFT-ordered (centre at index 0) windowed patch times the axis scales. The inverse
 returns the real signal in FFT order (zero shift at index 0), the layout of every response in
 :mod:`models.dcf`.
+
+A band limit ``M < N // 2`` keeps only the frequencies ``|ky|, |kx| <= M`` (rows ``0 .. M, -M .. -1``, columns
+``0 .. M``): the spectrum of a ``2M + 1``-point signal in the same layout, while the inverse still samples the
+band-limited signal on the full ``N x N`` grid. C-COT's filters are band-limited in the same way (fewer Fourier
+coefficients than sample pixels); the cost of both transforms and of everything done per frequency drops with
+``(2M + 1)^2 / N^2``.
 """
 
 from __future__ import annotations
@@ -22,13 +28,27 @@ from torch import Tensor, nn
 from models.dcf._signal import full_frequencies, half_frequencies
 
 
-def _forward_factors(n: int, window: Tensor | None, scale: Tensor | None, half: bool, dtype) -> tuple[Tensor, Tensor]:
+def band_frequencies(n: int, band: int, half: bool, device=None, dtype=torch.float64) -> Tensor:
+    """Integer frequencies of a DFT axis of length ``n`` limited to ``|k| <= band``, in FFT order (``half``: the
+    non-negative ones only)."""
+    return (half_frequencies if half else full_frequencies)(2 * band + 1, device, dtype)
+
+
+def band_index(n: int, band: int) -> Tensor:
+    """Positions of :func:`band_frequencies` in an FFT-ordered axis of length ``n`` (``0 .. M, n - M .. n - 1``)."""
+    return torch.remainder(band_frequencies(n, band, False, dtype=torch.int64), n)
+
+
+def _forward_factors(
+    n: int, band: int, window: Tensor | None, scale: Tensor | None, half: bool, dtype
+) -> tuple[Tensor, Tensor]:
     """``cos`` and ``-sin`` factors ``(n_freq, n)`` of ``sum_o w[o] x[o] exp(-i 2 pi k o / n) * scale[k]``."""
-    k = (half_frequencies if half else full_frequencies)(n, None, torch.float64)
+    k = band_frequencies(n, band, half)
     offset = torch.arange(n, dtype=torch.float64) - n // 2
     angle = 2 * math.pi * k[:, None] * offset[None, :] / n
     w = torch.ones(n, dtype=torch.float64) if window is None else window.to(torch.float64)
-    s = torch.ones(k.numel(), dtype=torch.float64) if scale is None else scale.to(torch.float64)
+    s = torch.ones(k.numel(), dtype=torch.float64) if scale is None else scale.to(torch.float64)[band_index(n, band)]
+    s = s[: k.numel()]
     factor = s[:, None] * w[None, :]
     return (factor * torch.cos(angle)).to(dtype), (-factor * torch.sin(angle)).to(dtype)
 
@@ -39,22 +59,34 @@ class RealDft2(nn.Module):
     Args:
         n: odd patch side. window: ``(N,)`` per-axis sample window in natural order (None: none).
         scale: ``(N,)`` per-axis factor of the full FFT-ordered frequencies ``0, 1, .., -1`` applied to the
-        spectrum (the half axis uses its first ``N // 2 + 1`` entries; None: none). dtype: of the matrices.
+        spectrum (the half axis uses the non-negative ones; None: none). dtype: of the matrices.
+        band: highest kept frequency ``M`` per axis (None: all, ``N // 2``). The spectra are then
+        ``(2M + 1) x (M + 1)``; below, ``N_f = 2M + 1`` and ``K = M + 1``.
     """
 
-    def __init__(self, n: int, window: Tensor | None = None, scale: Tensor | None = None, dtype=torch.float32):
+    def __init__(
+        self,
+        n: int,
+        window: Tensor | None = None,
+        scale: Tensor | None = None,
+        dtype=torch.float32,
+        band: int | None = None,
+    ) -> None:
         super().__init__()
         if n < 1 or n % 2 == 0:
             raise ValueError(f"RealDft2 needs an odd size, got {n}")
-        self.n, self.k = n, n // 2 + 1
-        cy, sy = _forward_factors(n, window, scale, False, dtype)
-        cx, sx = _forward_factors(n, window, None if scale is None else scale[: self.k], True, dtype)
-        self.register_buffer("rows", torch.cat([cy, sy]), persistent=False)  # (2N, N): Re, Im rows of the y DFT
+        band = n // 2 if band is None else band
+        if not 0 <= band <= n // 2:
+            raise ValueError(f"band must lie in [0, {n // 2}] for size {n}, got {band}")
+        self.n, self.band, self.rows_f, self.k = n, band, 2 * band + 1, band + 1
+        cy, sy = _forward_factors(n, band, window, scale, False, dtype)
+        cx, sx = _forward_factors(n, band, window, scale, True, dtype)
+        self.register_buffer("rows", torch.cat([cy, sy]), persistent=False)  # (2N_f, N): Re, Im rows of the y DFT
         self.register_buffer("cols", torch.cat([cx, sx]).T.contiguous(), persistent=False)  # (N, 2K)
         # Inverse: x first (half spectrum, weights 1 at kx = 0 and 2 elsewhere, 1 / N^2), then the real part of
         # the y transform, both onto FFT-ordered offsets.
-        kx = half_frequencies(n, None, torch.float64)
-        ky = full_frequencies(n, None, torch.float64)
+        kx = band_frequencies(n, band, True)
+        ky = band_frequencies(n, band, False)
         pos = full_frequencies(n, None, torch.float64)
         weight = (2 - (kx == 0).to(torch.float64)) / n**2
         ax = 2 * math.pi * kx[:, None] * pos[None, :] / n
@@ -63,21 +95,21 @@ class RealDft2(nn.Module):
                              persistent=False)  # (2K, 2N): [Sr | Si] -> [Ur | Ui]
         ay = 2 * math.pi * pos[:, None] * ky[None, :] / n
         self.register_buffer("inv_rows", torch.cat([torch.cos(ay), -torch.sin(ay)], 1).to(dtype),
-                             persistent=False)  # (N, 2N)
+                             persistent=False)  # (N, 2N_f)
 
     def forward(self, x: Tensor) -> tuple[Tensor, Tensor]:
-        """Spectrum of patches ``(P, N, N)``: real and imaginary parts, each ``(P, N, K)``."""
+        """Spectrum of patches ``(P, N, N)``: real and imaginary parts, each ``(P, N_f, K)``."""
         if x.shape[-2:] != (self.n, self.n):
             raise ValueError(f"expected (..., {self.n}, {self.n}) patches, got shape {tuple(x.shape)}")
-        v = torch.matmul(self.rows, x)  # (P, 2N, N): y transformed, Re rows then Im rows
-        u = torch.matmul(v, self.cols)  # (P, 2N, 2K)
-        n, k = self.n, self.k
-        re = u[..., :n, :k] - u[..., n:, k:]
-        im = u[..., :n, k:] + u[..., n:, :k]
+        v = torch.matmul(self.rows, x)  # (P, 2N_f, N): y transformed, Re rows then Im rows
+        u = torch.matmul(v, self.cols)  # (P, 2N_f, 2K)
+        r, k = self.rows_f, self.k
+        re = u[..., :r, :k] - u[..., r:, k:]
+        im = u[..., :r, k:] + u[..., r:, :k]
         return re, im
 
     def inverse(self, spectrum: Tensor) -> Tensor:
-        """Real signals ``(P, N, N)`` in FFT order from half spectra given as ``[re | im]`` ``(P, N, 2K)``."""
-        u = torch.matmul(spectrum, self.inv_cols)  # (P, N_ky, 2N): x transformed, [Ur | Ui]
-        u = torch.cat([u[..., : self.n], u[..., self.n :]], -2)  # (P, 2N, N)
+        """Real signals ``(P, N, N)`` in FFT order from half spectra given as ``[re | im]`` ``(P, N_f, 2K)``."""
+        u = torch.matmul(spectrum, self.inv_cols)  # (P, N_f, 2N): x transformed, [Ur | Ui]
+        u = torch.cat([u[..., : self.n], u[..., self.n :]], -2)  # (P, 2N_f, N)
         return torch.matmul(self.inv_rows, u)

@@ -8,8 +8,9 @@ frozen at their last position. Then the filters of the points still tracked lear
 sample at the new position: the search sample shifted in the Fourier domain.
 
 Cost: the patches are small (default 21, 15 and 25 px from fine to coarse: the finest sets the accuracy, the
-coarsest the largest motion) and their DFTs are real matrix products (:class:`~models.dcf.dft.RealDft2`) with
-the window and the spline interpolation folded in; Newton refinement on the Fourier series runs where it sets
+coarsest the largest motion), the filters keep only the lower 70 % of the frequencies (band-limited, as in
+C-COT) and their DFTs are real matrix products (:class:`~models.dcf.dft.RealDft2`) with the window and the
+spline interpolation folded in; Newton refinement on the Fourier series runs where it sets
 the output (level 0), the coarser levels take the grid peak refined by a parabola.
 
 Variants: ``ccot`` (continuous filter, exponentially decaying sample weights = a sample memory), ``ccot_ff``
@@ -39,9 +40,9 @@ from models.dcf import (
     peak_to_sidelobe_ratio,
     response_peak,
 )
-from models.dcf._signal import full_frequencies, half_frequencies
+from models.dcf._signal import full_frequencies
 from models.dcf.continuous import fourier_series_peak_parts
-from models.dcf.dft import RealDft2
+from models.dcf.dft import RealDft2, band_frequencies, band_index
 
 METHODS = ("ccot", "ccot_ff", "mosse")
 DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
@@ -56,14 +57,16 @@ def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
 
     Each level is the previous one blurred by the binomial ``[1, 4, 6, 4, 1] / 16`` (reflected borders) and
     averaged over 2x2 blocks (as ``kornia.geometry.transform.pyrdown``), so level pixel ``i`` sits at
-    ``2 i + 0.5`` of the level below.
+    ``2 i + 0.5`` of the level below. Both are one separable 6-tap filter at stride 2, applied as weighted sums
+    of strided slices (faster than a one-channel convolution on a CPU).
     """
-    taps = torch.tensor(_PYRDOWN_TAPS, device=frame.device, dtype=frame.dtype) / 32
+    taps = [t / 32 for t in _PYRDOWN_TAPS]
     pyramid = [frame]
     for _ in range(levels - 1):
         image = F.pad(pyramid[-1], (2, 3, 2, 3), mode="reflect")
-        image = F.conv2d(image, taps.reshape(1, 1, 6, 1), stride=(2, 1))
-        pyramid.append(F.conv2d(image, taps.reshape(1, 1, 1, 6), stride=(1, 2)))
+        h, w = (image.shape[-2] - 4) // 2, (image.shape[-1] - 4) // 2
+        rows = sum(tap * image[..., i : i + 2 * h - 1 : 2, :] for i, tap in enumerate(taps))
+        pyramid.append(sum(tap * rows[..., i : i + 2 * w - 1 : 2] for i, tap in enumerate(taps)))
     return pyramid
 
 
@@ -97,8 +100,8 @@ def _per_level(value: int | Iterable[int], levels: int, name: str) -> tuple[int,
 @dataclass
 class TrackerState:
     """Tracker state: positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)`` and per pyramid level (finest
-    first) the filters ``(3, P, N, K)``: real and imaginary parts of the numerators ``A`` and the denominators
-    ``B`` of the level's ``N x K`` half spectra."""
+    first) the filters ``(3, P, 2M + 1, M + 1)``: real and imaginary parts of the numerators ``A`` and the
+    denominators ``B`` of the level's band-limited half spectra (``M`` = the level's band)."""
 
     positions: Tensor
     lost: Tensor
@@ -119,6 +122,8 @@ class PointTracker(nn.Module):
         newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
         level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
         psr_threshold: points whose level-0 PSR falls below this are lost. psr_exclude: PSR exclusion window.
+        band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
+        filters as in C-COT; 1 keeps all). The filters, the sample spectra and the transforms shrink with it.
     """
 
     def __init__(
@@ -132,6 +137,7 @@ class PointTracker(nn.Module):
         newton_iterations: int | tuple[int, ...] = (2, 0, 0),
         psr_threshold: float = 5.0,
         psr_exclude: int = 7,
+        band: float = 0.7,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -143,8 +149,11 @@ class PointTracker(nn.Module):
         self.method, self.levels = method, levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
+        if not 0 < band <= 1:
+            raise InputError(f"band must lie in (0, 1], got {band}")
+        self.bands = tuple(max(1, round(band * (n // 2))) for n in self.sizes)
         self.dfts = nn.ModuleList()
-        for level, n in enumerate(self.sizes):
+        for level, (n, m) in enumerate(zip(self.sizes, self.bands, strict=True)):
             window = cosine_window((n,), dtype=torch.float64).roll(n // 2)  # natural order
             if method == "mosse":
                 scale = None
@@ -152,12 +161,13 @@ class PointTracker(nn.Module):
             else:  # Fourier coefficients of the cubic-spline interpolated sample (eq. 3.6) and of the label
                 scale = cubic_spline_fourier(full_frequencies(n, None, torch.float64) / n) / n
                 label = continuous_label((n, n), sigma, dtype=torch.float64)
-            self.dfts.append(RealDft2(n, window, scale))
-            self.register_buffer(f"label_{level}", label.float(), persistent=False)  # (N, K)
+            self.dfts.append(RealDft2(n, window, scale, band=m))
+            label = label[band_index(n, m), : m + 1]
+            self.register_buffer(f"label_{level}", label.float(), persistent=False)  # (2M + 1, M + 1)
 
     def _sample(self, image: Tensor, centres: Tensor, level: int) -> tuple[Tensor, Tensor]:
-        """Spectrum (real, imaginary ``(P, N, K)``) of the normalised, windowed patches around ``centres``
-        ``(P, 2)`` (pixels of that level)."""
+        """Band-limited spectrum (real, imaginary ``(P, 2M + 1, M + 1)``) of the normalised, windowed patches
+        around ``centres`` ``(P, 2)`` (pixels of that level)."""
         x = extract_patches(image, centres, self.sizes[level])
         x = x - x.mean((-2, -1), keepdim=True)  # torch.var_mean is several times slower on small patches
         return self.dfts[level](x / (x.square().mean((-2, -1), keepdim=True).sqrt() + 1e-5))
@@ -176,9 +186,9 @@ class PointTracker(nn.Module):
         return torch.isfinite(positions).all(-1) & (x >= 0) & (x <= w - 1) & (y >= 0) & (y <= h - 1)
 
     def _learn(self, filters: Tensor | None, zr: Tensor, zi: Tensor, eta: Tensor, level: int) -> Tensor:
-        """Blend one sample per point (spectrum ``(P, N, K)``) into a level's filters with weight ``eta``
-        ``(P,)`` (MOSSE's running update; for C-COT the sample memory with exponentially decaying weights, kept
-        as running sums). ``filters`` None starts from scratch."""
+        """Blend one sample per point (band-limited spectrum ``(P, 2M + 1, M + 1)``) into a level's filters with
+        weight ``eta`` ``(P,)`` (MOSSE's running update; for C-COT the sample memory with exponentially decaying
+        weights, kept as running sums). ``filters`` None starts from scratch."""
         y = getattr(self, f"label_{level}")
         new = torch.stack([zr * y, -zi * y, zr.square() + zi.square()])
         return new if filters is None else torch.lerp(filters, new, eta[:, None, None])
@@ -207,15 +217,15 @@ class PointTracker(nn.Module):
         """Sub-pixel shift ``(P, 2)`` (x, y) of the score maximum at ``level`` (``spectrum``: ``[re | im]``)."""
         if self.newton[level] == 0:
             return response_peak(score, 2)[0]
-        n, k = self.sizes[level], self.sizes[level] // 2 + 1
+        n, k = self.sizes[level], self.bands[level] + 1
         sr, si = spectrum[..., :k], spectrum[..., k:]
         return fourier_series_peak_parts(sr, si, (n, n), self.newton[level], score, srsi=spectrum)[0]
 
     def _shift(self, zr: Tensor, zi: Tensor, shift: Tensor, level: int) -> tuple[Tensor, Tensor]:
         """Spectra of samples moved by ``shift`` ``(P, 2)`` (x, y) level pixels: ``x'(t) = x(t + shift)``."""
-        n = self.sizes[level]
-        ky = full_frequencies(n, shift.device, shift.dtype) * (2 * math.pi / n)
-        kx = half_frequencies(n, shift.device, shift.dtype) * (2 * math.pi / n)
+        n, m = self.sizes[level], self.bands[level]
+        ky = band_frequencies(n, m, False, shift.device, shift.dtype) * (2 * math.pi / n)
+        kx = band_frequencies(n, m, True, shift.device, shift.dtype) * (2 * math.pi / n)
         ay, ax = ky * shift[:, 1:2], kx * shift[:, 0:1]
         cy, sy = torch.cos(ay)[:, :, None], torch.sin(ay)[:, :, None]
         cx, sx = torch.cos(ax)[:, None, :], torch.sin(ax)[:, None, :]
@@ -227,7 +237,7 @@ class PointTracker(nn.Module):
 
         Args:
             frame: ``(1, 1, H, W)`` gray frame. positions: ``(P, 2)``. lost: ``(P,)`` bool.
-            filters: per level, finest first, ``(3, P, N, K)`` (see :class:`TrackerState`).
+            filters: per level, finest first, ``(3, P, 2M + 1, M + 1)`` (see :class:`TrackerState`).
         Returns:
             positions, lost, psr ``(P,)`` and the filters after this frame.
         """

@@ -18,6 +18,7 @@ from models.dcf import (
     fourier_series_peak,
     shift_fourier,
 )
+from models.dcf.continuous import fourier_series_peak_parts
 
 
 def _keys(s: np.ndarray, a: float = -0.75) -> np.ndarray:
@@ -103,6 +104,21 @@ def test_newton_peak_equals_dense_search():
         shift, _ = fourier_series_peak(shat, size, iterations=8)
         ref = _dense_series_max(shat.numpy(), size, 0.004)
         np.testing.assert_allclose(shift.numpy(), ref, atol=4e-3)
+
+
+def test_newton_peak_of_a_band_limited_spectrum_equals_the_zero_padded_one():
+    gen = torch.Generator().manual_seed(7)
+    size, band = (21, 21), 6
+    shat = ccot_sample(torch.randn(5, *size, generator=gen, dtype=torch.float64), 2)
+    rows = torch.cat([torch.arange(band + 1), torch.arange(size[0] - band, size[0])])
+    padded = torch.zeros_like(shat)
+    padded[:, rows, : band + 1] = shat[:, rows, : band + 1]
+    limited = padded[:, rows, : band + 1]
+    grid = torch.fft.irfftn(padded, s=size)
+    expected = fourier_series_peak(padded, size, iterations=6, grid=grid)
+    shift, value = fourier_series_peak_parts(limited.real, limited.imag, size, 6, grid)
+    torch.testing.assert_close(shift, expected[0], rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(value, expected[1], rtol=1e-12, atol=1e-12)
 
 
 def _bandlimited(

@@ -40,3 +40,23 @@ def test_round_trip_and_window_from_the_filter_core():
         RealDft2(8)
     with pytest.raises(ValueError, match="patches"):
         dft(torch.zeros(2, n, n + 2, dtype=torch.float64))
+    with pytest.raises(ValueError, match="band"):
+        RealDft2(n, band=n // 2 + 1)
+
+
+@pytest.mark.parametrize(("n", "band"), [(21, 7), (15, 0), (9, 4)])
+def test_band_limit_keeps_the_low_frequencies_of_the_full_spectrum(n, band):
+    gen = torch.Generator().manual_seed(band)
+    x = torch.randn(3, n, n, generator=gen, dtype=torch.float64)
+    window = torch.rand(n, generator=gen, dtype=torch.float64) + 0.5
+    scale = torch.rand(n, generator=gen, dtype=torch.float64) + 0.5
+    full = torch.complex(*RealDft2(n, window, scale, dtype=torch.float64)(x))
+    limited = RealDft2(n, window, scale, dtype=torch.float64, band=band)
+    rows = torch.cat([torch.arange(band + 1), torch.arange(n - band, n)])
+    expected = full[:, rows, : band + 1]
+    torch.testing.assert_close(torch.complex(*limited(x)), expected, rtol=1e-10, atol=1e-10)
+    # the inverse samples the band-limited signal on the full grid: irfft2 of the zero-padded spectrum
+    padded = torch.zeros_like(full)
+    padded[:, rows, : band + 1] = expected
+    out = limited.inverse(torch.cat([expected.real, expected.imag], -1))
+    torch.testing.assert_close(out, torch.fft.irfft2(padded, s=(n, n)), rtol=1e-10, atol=1e-10)
