@@ -237,7 +237,7 @@ def fourier_series_peak_parts(
     ndim = len(size)
     _check_odd(size)
     real_dtype = sr.dtype
-    arg = grid.flatten(-ndim).argmax(dim=-1)
+    v_grid, arg = grid.flatten(-ndim).max(dim=-1)  # the series sampled on the grid
     t0 = torch.stack(
         [wrap_index(i, n).to(real_dtype) for i, n in zip(_unravel(arg, size), size, strict=True)], dim=-1
     )
@@ -263,7 +263,6 @@ def fourier_series_peak_parts(
             step = torch.stack([step_y, step_x], dim=-1)
         step = torch.where(ok.unsqueeze(-1), step, torch.zeros_like(step))
         theta = theta + torch.maximum(torch.minimum(step, two_pi_over_n), -two_pi_over_n)
-    v_grid, _, _ = _series(sr, si, theta0, ks, w, order=0, srsi=srsi)
     v_ref, _, _ = _series(sr, si, theta, ks, w, order=0, srsi=srsi)
     t = theta / two_pi_over_n
     keep = (v_ref >= v_grid) & ((t - t0).abs() <= 1).all(dim=-1)

@@ -73,6 +73,10 @@ def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
 def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     """Bilinear ``size x size`` patches around sub-pixel centres, natural order (centre at ``size // 2``).
 
+    All pixels of a patch share the centre's sub-pixel offset, so a patch is an integer crop one pixel larger,
+    interpolated once along each axis: the values of ``grid_sample`` (bilinear, border padding) at a fraction
+    of its cost. Centres are clamped to the image.
+
     Args:
         image: ``(1, 1, h, w)``; centres: ``(P, 2)`` (x, y) pixels of that image (border pixels repeat
         outside).
@@ -80,14 +84,23 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
         ``(P, size, size)`` patches.
     """
     h, w = image.shape[-2:]
-    scale = torch.tensor([2.0 / w, 2.0 / h], device=centres.device, dtype=centres.dtype)
-    off = torch.arange(size, device=centres.device, dtype=centres.dtype) - size // 2
-    offsets = torch.stack(torch.meshgrid(off, off, indexing="xy"), -1) * scale  # (size, size, 2) as (x, y)
-    grid = offsets + ((centres + 0.5) * scale - 1)[:, None, None, :]
-    patches = F.grid_sample(
-        image, grid.reshape(1, -1, size, 2), mode="bilinear", padding_mode="border", align_corners=False
-    )
-    return patches.reshape(-1, size, size)
+    r, n = size // 2, size + 1
+    limit = torch.tensor([w - 1, h - 1], device=centres.device, dtype=centres.dtype)
+    centres = torch.minimum(centres.clamp_min(0), limit)
+    corner = centres.floor()
+    frac = (centres - corner)[:, :, None, None]
+    padded = F.pad(image, (r, r + 1, r, r + 1), mode="replicate")[0, 0]  # pixel (x, y) at (x + r, y + r)
+    x0, y0 = corner.long().unbind(-1)
+    if torch.compiler.is_exporting() or torch.onnx.is_in_onnx_export():
+        # ONNX: one Gather with flat indices (as_strided has no ONNX equivalent); the same values
+        offsets = torch.arange(n, device=centres.device)
+        flat = (y0 * padded.shape[-1] + x0)[:, None, None] + offsets[:, None] * padded.shape[-1] + offsets
+        crops = padded.flatten()[flat]
+    else:
+        stride = padded.stride(0)
+        crops = padded.as_strided((h, w, n, n), (stride, 1, stride, 1))[y0, x0]  # (P, size + 1, size + 1)
+    rows = torch.lerp(crops[:, :-1], crops[:, 1:], frac[:, 1])
+    return torch.lerp(rows[..., :-1], rows[..., 1:], frac[:, 0])
 
 
 def _per_level(value: int | Iterable[int], levels: int, name: str) -> tuple[int, ...]:

@@ -47,6 +47,22 @@ def test_extract_patches_equals_direct_crop():
     )
 
 
+def test_extract_patches_equals_grid_sample_with_border_padding(monkeypatch):
+    gen = torch.Generator().manual_seed(2)
+    img = torch.rand(1, 1, 23, 31, generator=gen, dtype=torch.float64)
+    centres = torch.rand(50, 2, generator=gen, dtype=torch.float64) * torch.tensor([30.0, 22.0])
+    centres[:4] = torch.tensor([[0.0, 0.0], [30.0, 22.0], [0.25, 21.5], [29.75, 0.5]], dtype=torch.float64)
+    size = 7
+    off = torch.arange(size, dtype=torch.float64) - size // 2
+    xy = torch.stack(torch.meshgrid(off, off, indexing="xy"), -1) + centres[:, None, None, :]
+    grid = (xy + 0.5) / torch.tensor([31.0, 23.0], dtype=torch.float64) * 2 - 1
+    expected = torch.nn.functional.grid_sample(img, grid.reshape(1, -1, size, 2), mode="bilinear",
+                                               padding_mode="border", align_corners=False).reshape(-1, size, size)
+    torch.testing.assert_close(extract_patches(img, centres, size), expected)
+    monkeypatch.setattr(torch.compiler, "is_exporting", lambda: True)  # the flat-index gather used for ONNX
+    torch.testing.assert_close(extract_patches(img, centres, size), expected)
+
+
 @pytest.mark.parametrize("method", ["ccot", "ccot_ff", "mosse"])
 def test_large_integer_translation_is_recovered(method):
     img = _smooth_image(160, 192, 0)
