@@ -17,6 +17,7 @@ from pathlib import Path
 
 import lightning as L
 import torch
+import torch.nn.functional as F
 
 from data.errors import InputError
 from models.backbones import ResNetBackbone
@@ -42,7 +43,12 @@ class FRTMSegmentation(L.LightningModule):
             training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
         loss, pos_weight, iou_weight: decoder loss (``models.vos.losses.segmentation_loss``; FRTM: plain
             ``bce``; ``bce_iou`` adds a soft-IoU term against the collapse to background on small objects).
-        lr, weight_decay, lr_step, lr_gamma: Adam (amsgrad) and StepLR (FRTM 1e-3, 1e-5, 127, 0.1).
+        target_loss_weight: weight of an auxiliary loss on the target model itself (mean squared error of its
+            bilinearly upsampled test-frame scores against the test masks, the data term of eq. 5.2; FRTM: 0).
+            It gives a backbone trained from scratch a direct signal to make the target model discriminative.
+        lr, weight_decay, lr_step, lr_gamma: Adam and StepLR (FRTM 1e-3, 1e-5, 127, 0.1). amsgrad: FRTM's
+            Adam variant (True); its step sizes never grow again after large early gradients, which can stall a
+            network trained from scratch.
         tracker: keyword arguments of ``FRTMTracker`` for validation, test and inference.
         seed: seeds augmentation and filter initialisation.
         init_checkpoint: checkpoint of an ``FRTMSegmentation`` with the same architecture whose weights
@@ -66,10 +72,12 @@ class FRTMSegmentation(L.LightningModule):
         loss: str = "bce",
         pos_weight: float = 1.0,
         iou_weight: float = 1.0,
+        target_loss_weight: float = 0.0,
         lr: float = 1e-3,
         weight_decay: float = 1e-5,
         lr_step: int = 127,
         lr_gamma: float = 0.1,
+        amsgrad: bool = True,
         tracker: dict | None = None,
         seed: int = 0,
         init_checkpoint: str | None = None,
@@ -139,10 +147,17 @@ class FRTMSegmentation(L.LightningModule):
         score = apply_filter(project(x.view(b, t, *x.shape[1:]), wp), wf)
         logits = self.decoder(score.flatten(0, 1)[:, None], feats, tuple(test.shape[-2:]))
         h = self.hparams
-        loss = segmentation_loss(logits[:, 0], batch["test_masks"].flatten(0, 1), h.loss, h.pos_weight, h.iou_weight)
+        masks = batch["test_masks"].flatten(0, 1)
+        loss = segmentation_loss(logits[:, 0], masks, h.loss, h.pos_weight, h.iou_weight)
+        if h.target_loss_weight > 0:
+            up = F.interpolate(score.flatten(0, 1)[:, None], size=masks.shape[-2:], mode="bilinear",
+                               align_corners=False)[:, 0]
+            target_loss = F.mse_loss(up, masks)
+            self.log("train/target_loss", target_loss)
+            loss = loss + h.target_loss_weight * target_loss
         with torch.no_grad():
             pred = logits[:, 0] > 0
-            gt = batch["test_masks"].flatten(0, 1) > 0.5
+            gt = masks > 0.5
             iou = ((pred & gt).flatten(1).sum(1) / (pred | gt).flatten(1).sum(1).clamp_min(1)).mean()
         self.log("train/loss", loss, prog_bar=True)
         self.log("train/iou", iou, prog_bar=True)
@@ -191,6 +206,6 @@ class FRTMSegmentation(L.LightningModule):
     def configure_optimizers(self):
         h = self.hparams
         params = [p for p in self.parameters() if p.requires_grad]
-        opt = torch.optim.Adam(params, lr=h.lr, weight_decay=h.weight_decay, amsgrad=True)
+        opt = torch.optim.Adam(params, lr=h.lr, weight_decay=h.weight_decay, amsgrad=h.amsgrad)
         sched = torch.optim.lr_scheduler.StepLR(opt, step_size=h.lr_step, gamma=h.lr_gamma)
         return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "epoch"}}

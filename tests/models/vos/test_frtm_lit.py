@@ -61,3 +61,19 @@ def test_init_checkpoint_loads_weights_for_fit_only(tmp_path):
     (tmp_path / "bad.ckpt").write_bytes(b"not a checkpoint")
     with pytest.raises(InputError, match="not a readable"):
         FRTMSegmentation(mdim=8, init_checkpoint=str(tmp_path / "bad.ckpt")).setup("fit")
+
+
+def test_target_loss_adds_the_weighted_target_model_error() -> None:
+    ds = SyntheticTrainingSamples(2, n_test_frames=2, max_gap=3, height=48, width=64)
+    batch = torch.utils.data.default_collate([ds[0], ds[1]])
+    losses, logged = [], []
+    for weight in (0.0, 2.0):
+        torch.manual_seed(0)
+        model = FRTMSegmentation(train_backbone=True, mdim=8, train_channels=8, train_num_aug=2,
+                                 train_schedule=(2, 2), feature_layer="layer2", target_loss_weight=weight)
+        model.log = lambda name, value, **k: logged.append(float(value)) if name == "train/target_loss" else None
+        losses.append(model.training_step(batch, 0))
+    assert len(logged) == 1 and logged[0] > 0
+    torch.testing.assert_close(losses[1] - losses[0], torch.tensor(2 * logged[0]), rtol=1e-4, atol=1e-6)
+    losses[1].backward()  # the target term reaches the stage the target model reads
+    assert model.backbone.layers["layer2"][0].conv1.weight.grad.abs().sum() > 0
