@@ -103,8 +103,9 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     return torch.lerp(rows[..., :-1], rows[..., 1:], frac[:, 0])
 
 
-def _per_level(value: int | Iterable[int], levels: int, name: str) -> tuple[int, ...]:
-    values = (value,) * levels if isinstance(value, int) else tuple(int(v) for v in value)
+def _per_level(value, levels: int, name: str, kind: type = int) -> tuple:
+    """One value per pyramid level from a scalar or a sequence (``kind``: int or float)."""
+    values = (kind(value),) * levels if isinstance(value, int | float) else tuple(kind(v) for v in value)
     if len(values) != levels:
         raise InputError(f"{name} needs one value per pyramid level ({levels}), got {values}")
     return values
@@ -136,7 +137,8 @@ class PointTracker(nn.Module):
         level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
         psr_threshold: points whose level-0 PSR falls below this are lost. psr_exclude: PSR exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
-        filters as in C-COT; 1 keeps all). The filters, the sample spectra and the transforms shrink with it.
+        filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
+        the sample spectra and the transforms shrink with it.
     """
 
     def __init__(
@@ -150,7 +152,7 @@ class PointTracker(nn.Module):
         newton_iterations: int | tuple[int, ...] = (2, 0, 0),
         psr_threshold: float = 5.0,
         psr_exclude: int = 7,
-        band: float = 0.7,
+        band: float | tuple[float, ...] = 0.7,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -162,9 +164,10 @@ class PointTracker(nn.Module):
         self.method, self.levels = method, levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
-        if not 0 < band <= 1:
-            raise InputError(f"band must lie in (0, 1], got {band}")
-        self.bands = tuple(max(1, round(band * (n // 2))) for n in self.sizes)
+        fractions = _per_level(band, levels, "band", float)
+        if not all(0 < f <= 1 for f in fractions):
+            raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
+        self.bands = tuple(max(1, round(f * (n // 2))) for f, n in zip(fractions, self.sizes, strict=True))
         self.dfts = nn.ModuleList()
         for level, (n, m) in enumerate(zip(self.sizes, self.bands, strict=True)):
             window = cosine_window((n,), dtype=torch.float64).roll(n // 2)  # natural order

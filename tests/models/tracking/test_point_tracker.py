@@ -134,6 +134,21 @@ def test_per_level_settings_are_checked():
         PointTracker("ccot", patch_size=(21, 15))
     with pytest.raises(InputError, match="odd"):
         PointTracker("ccot", patch_size=(21, 16, 25))
+    tracker = PointTracker("ccot", patch_size=(21, 15, 25), band=(1.0, 0.7, 0.5))
+    assert tracker.bands == (10, 5, 6)  # highest kept frequency per level
+    assert tuple(tracker.label_2.shape) == (13, 7)
+    with pytest.raises(InputError, match="band"):
+        PointTracker("ccot", band=1.5)
+
+
+@pytest.mark.parametrize("band", [1.0, 0.5])
+def test_subpixel_translation_with_and_without_band_limit(band):
+    img = _smooth_image(128, 128, 5)
+    d = torch.tensor([-2.63, 1.18], dtype=torch.float64)
+    points = torch.tensor([[40.0, 50.0], [64.0, 64.0], [90.0, 80.0]], dtype=torch.float64)
+    tracks, lost, _ = PointTracker("ccot", band=band).double().track([img, _translate(img, *d.tolist())], points)
+    assert not lost.any()
+    assert (tracks[1] - points - d).abs().max() < 0.05
 
 
 def test_good_features_find_rectangle_corners():
