@@ -10,7 +10,8 @@ statistics and never count as inliers.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
-device by the wall clock after synchronisation. The JSON names the clock.
+device by the wall clock after synchronisation. The JSON names the clock. Every method first runs once on the
+first two frames, untimed (warm-up).
 
     python bench/point_tracking.py --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
         --plot docs/figures/point_tracking.png
@@ -135,10 +136,11 @@ def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu")
     for name, data in datasets.items():
         results = {}
         for method in methods:
-            if method == "klt":
-                pred, lost, seconds = run_klt(data.frames, data.points, device)
-            else:
-                pred, lost, seconds = run_dcf(method, data.frames, data.points, device)
+            for frames in (data.frames[:2], data.frames):  # untimed warm-up first: one-time start-up costs
+                if method == "klt":
+                    pred, lost, seconds = run_klt(frames, data.points, device)
+                else:
+                    pred, lost, seconds = run_dcf(method, frames, data.points, device)
             results[method] = metrics(pred, lost, data, seconds)
         out[name] = {
             "frames": len(data.frames),
