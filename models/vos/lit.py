@@ -41,8 +41,9 @@ class FRTMSegmentation(L.LightningModule):
         feature_layer: stage the target model reads (layer3, stride 16).
         train_channels, train_num_aug, train_reg, train_schedule, train_optimizer: target model fitted in
             training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
-        loss, pos_weight, iou_weight: decoder loss (``models.vos.losses.segmentation_loss``; FRTM: plain
-            ``bce``; ``bce_iou`` adds a soft-IoU term against the collapse to background on small objects).
+        loss, pos_weight, iou_weight, boundary_weight: decoder loss (``models.vos.losses.segmentation_loss``;
+            FRTM: plain ``bce``; ``bce_iou`` adds a soft-IoU term against the collapse to background on small
+            objects; ``boundary_weight`` raises the BCE near the contours).
         target_loss_weight: weight of an auxiliary loss on the target model itself (mean squared error of its
             bilinearly upsampled test-frame scores against the test masks, the data term of eq. 5.2; FRTM: 0).
             It gives a backbone trained from scratch a direct signal to make the target model discriminative.
@@ -72,6 +73,7 @@ class FRTMSegmentation(L.LightningModule):
         loss: str = "bce",
         pos_weight: float = 1.0,
         iou_weight: float = 1.0,
+        boundary_weight: float = 0.0,
         target_loss_weight: float = 0.0,
         lr: float = 1e-3,
         weight_decay: float = 1e-5,
@@ -148,7 +150,7 @@ class FRTMSegmentation(L.LightningModule):
         logits = self.decoder(score.flatten(0, 1)[:, None], feats, tuple(test.shape[-2:]))
         h = self.hparams
         masks = batch["test_masks"].flatten(0, 1)
-        loss = segmentation_loss(logits[:, 0], masks, h.loss, h.pos_weight, h.iou_weight)
+        loss = segmentation_loss(logits[:, 0], masks, h.loss, h.pos_weight, h.iou_weight, h.boundary_weight)
         if h.target_loss_weight > 0:
             up = F.interpolate(score.flatten(0, 1)[:, None], size=masks.shape[-2:], mode="bilinear",
                                align_corners=False)[:, 0]

@@ -9,14 +9,23 @@ from data.errors import InputError
 from models.vos.losses import segmentation_loss, soft_iou_loss
 
 
-def _reference(logits: torch.Tensor, target: torch.Tensor, pos_weight: float, iou: bool) -> float:
+def _near_contour(t_img: list[list[float]], i: int, j: int, radius: int) -> bool:
+    """Does the (clipped) window of ``radius`` around (i, j) hold both foreground and background?"""
+    values = {t_img[a][b] > 0.5 for a in range(max(0, i - radius), min(len(t_img), i + radius + 1))
+              for b in range(max(0, j - radius), min(len(t_img[0]), j + radius + 1))}
+    return len(values) == 2
+
+
+def _reference(logits: torch.Tensor, target: torch.Tensor, pos_weight: float, iou: bool,
+               boundary_weight: float = 0.0, radius: int = 2) -> float:
     bce, iou_terms = [], []
     for x_img, t_img in zip(logits.tolist(), target.tolist(), strict=True):
         inter = union = 0.0
-        for x_row, t_row in zip(x_img, t_img, strict=True):
-            for x, t in zip(x_row, t_row, strict=True):
+        for i, (x_row, t_row) in enumerate(zip(x_img, t_img, strict=True)):
+            for j, (x, t) in enumerate(zip(x_row, t_row, strict=True)):
                 p = 1 / (1 + math.exp(-x))
-                bce.append(-(pos_weight * t * math.log(p) + (1 - t) * math.log(1 - p)))
+                w = 1 + boundary_weight * _near_contour(t_img, i, j, radius)
+                bce.append(-w * (pos_weight * t * math.log(p) + (1 - t) * math.log(1 - p)))
                 inter += p * t
                 union += p + t - p * t
         iou_terms.append(1 - (inter + 1) / (union + 1))
@@ -24,15 +33,18 @@ def _reference(logits: torch.Tensor, target: torch.Tensor, pos_weight: float, io
     return out + sum(iou_terms) / len(iou_terms) if iou else out
 
 
-@pytest.mark.parametrize(("kind", "pos_weight"), [("bce", 1.0), ("bce", 4.0), ("bce_iou", 1.0), ("bce_iou", 2.5)])
-def test_segmentation_loss_matches_reference(kind: str, pos_weight: float) -> None:
+@pytest.mark.parametrize(("kind", "pos_weight", "boundary_weight"),
+                         [("bce", 1.0, 0.0), ("bce", 4.0, 0.0), ("bce_iou", 1.0, 0.0), ("bce_iou", 2.5, 0.0),
+                          ("bce", 1.0, 3.0), ("bce_iou", 2.0, 4.0)])
+def test_segmentation_loss_matches_reference(kind: str, pos_weight: float, boundary_weight: float) -> None:
     gen = torch.Generator().manual_seed(0)
     logits = 3 * torch.randn(3, 5, 7, generator=gen, dtype=torch.float64)
     target = (torch.rand(3, 5, 7, generator=gen, dtype=torch.float64) > 0.8).double()
     target[1] = 0  # an empty mask
     target[2, 0, 0] = 0.5  # a soft label
-    got = float(segmentation_loss(logits, target, kind, pos_weight))
-    assert got == pytest.approx(_reference(logits, target, pos_weight, kind == "bce_iou"), rel=1e-12)
+    got = float(segmentation_loss(logits, target, kind, pos_weight, boundary_weight=boundary_weight))
+    want = _reference(logits, target, pos_weight, kind == "bce_iou", boundary_weight)
+    assert got == pytest.approx(want, rel=1e-12)
 
 
 def test_soft_iou_limits_and_small_objects() -> None:
