@@ -5,13 +5,15 @@ Datasets: Sintel folders laid out like ``../shared/data/sintel/alley_1/clean`` (
 first ground-truth flow on, chained over consecutive flows, ground truth by the thesis protocol) and a seeded
 synthetic sequence with chained ground truth. Metrics at the last frame, per method: ``epe_median``,
 ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at`` (fraction not
-lost with EPE below 1, 2, 3 px) and ``point_frames_per_s``. Lost points keep their last position for the EPE
+lost with EPE below 1, 2, 3 px), ``point_frames_per_s`` and, with KLT in the run, ``speed_vs_klt`` (the ratio of
+point-frames per second). Lost points keep their last position for the EPE
 statistics and never count as inliers.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
 device by the wall clock after synchronisation. The JSON names the clock. Every method first runs once on the
-first two frames, untimed (warm-up).
+first two frames, untimed (warm-up). ``--compile`` adds ``ccot_compiled``: ``ccot`` with its per-frame step
+through ``torch.compile`` (compiled during the warm-up).
 
     python bench/point_tracking.py --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
         --plot docs/figures/point_tracking.png
@@ -38,6 +40,8 @@ from models.tracking.klt import klt_track  # noqa: E402
 from models.tracking.run import cpu_threads  # noqa: E402
 
 METHODS = ("ccot", "ccot_ff", "mosse", "klt")
+COMPILED = "ccot_compiled"  # ccot with its step through torch.compile (--compile)
+_TRACKERS: dict[tuple[str, str], PointTracker] = {}
 THRESHOLDS = (1, 2, 3)
 
 
@@ -95,17 +99,21 @@ def run_klt(frames: np.ndarray, points: np.ndarray, device: str = "cpu") -> tupl
     return tracks[-1], lost[-1], timer() - start
 
 
-def run_dcf(method: str, frames: np.ndarray, points: np.ndarray, device: str = "cpu"):
+def run_dcf(method: str, frames: np.ndarray, points: np.ndarray, device: str = "cpu", compile: bool = False):
     """Our tracker; returns last positions, lost flags and seconds spent tracking (frames already in
-    memory)."""
-    tracker = PointTracker(method).to(device)
+    memory). ``compile``: the per-frame step through ``torch.compile`` (compiled in the warm-up run: one tracker
+    per method and device serves every run)."""
+    key = (method, device)
+    if key not in _TRACKERS:
+        _TRACKERS[key] = PointTracker(method).to(device)
+    tracker = _TRACKERS[key]
     tensors = [torch.from_numpy(f.astype(np.float32)).to(device) for f in frames]
     pts = torch.from_numpy(points.astype(np.float32)).to(device)
     timer = clock(device)
     if device != "cpu":
         torch.cuda.synchronize()
     start = timer()
-    tracks, lost, _ = tracker.track(tensors, pts)
+    tracks, lost, _ = tracker.track(tensors, pts, compile=compile)
     if device != "cpu":
         torch.cuda.synchronize()
     return tracks[-1].double().cpu().numpy(), lost[-1].cpu().numpy(), timer() - start
@@ -140,8 +148,13 @@ def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu")
                 if method == "klt":
                     pred, lost, seconds = run_klt(frames, data.points, device)
                 else:
-                    pred, lost, seconds = run_dcf(method, frames, data.points, device)
+                    compiled = method == COMPILED
+                    base = "ccot" if compiled else method
+                    pred, lost, seconds = run_dcf(base, frames, data.points, device, compile=compiled)
             results[method] = metrics(pred, lost, data, seconds)
+        if "klt" in results:
+            for m in results.values():
+                m["speed_vs_klt"] = m["point_frames_per_s"] / results["klt"]["point_frames_per_s"]
         out[name] = {
             "frames": len(data.frames),
             "points": len(data.points),
@@ -159,14 +172,14 @@ def table(result: dict) -> str:
             f"{name}: {ds['points']} points, {ds['frames']} frames, {ds['evaluated_points']} evaluated"
         )
         lines.append(
-            f"  {'method':8s} {'inliers':>8s} {'inl.EPE':>8s} {'EPE med':>8s} {'EPE mean':>9s} "
-            f"{'P@1':>6s} {'P@2':>6s} {'lost':>6s} {'pt-fr/s':>9s}"
+            f"  {'method':13s} {'inliers':>8s} {'inl.EPE':>8s} {'EPE med':>8s} {'EPE mean':>9s} "
+            f"{'P@1':>6s} {'P@2':>6s} {'lost':>6s} {'pt-fr/s':>9s} {'vs klt':>7s}"
         )
         for method, m in ds["methods"].items():
             lines.append(
-                f"  {method:8s} {m['inlier_frac']:8.3f} {m['inlier_epe_mean']:8.3f} {m['epe_median']:8.3f} "
+                f"  {method:13s} {m['inlier_frac']:8.3f} {m['inlier_epe_mean']:8.3f} {m['epe_median']:8.3f} "
                 f"{m['epe_mean']:9.2f} {m['precision_at']['1']:6.3f} {m['precision_at']['2']:6.3f} "
-                f"{m['lost_frac']:6.3f} {m['point_frames_per_s']:9.0f}"
+                f"{m['lost_frac']:6.3f} {m['point_frames_per_s']:9.0f} {m.get('speed_vs_klt', float('nan')):7.3f}"
             )
     return "\n".join(lines)
 
@@ -217,6 +230,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument(
+        "--compile",
+        action="store_true",
+        help=f"also run ccot with its step through torch.compile ({COMPILED}; compiled in the warm-up)",
+    )
     parser.add_argument("--device", default="cpu", help="torch device for the DCF trackers")
     parser.add_argument(
         "--threads",
@@ -234,7 +252,8 @@ def main(argv: list[str] | None = None) -> int:
             datasets[f"sintel_{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points)
         if args.synthetic or not datasets:
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed)
-        result = evaluate(datasets, args.methods, args.device)
+        methods = [*args.methods, *([COMPILED] if args.compile else [])]
+        result = evaluate(datasets, methods, args.device)
     if args.plot:
         plot(result, args.plot)
     for ds in result.values():

@@ -3,11 +3,11 @@
     python -m export.tracking_onnx --out track_step.onnx [--method ccot] [--height 240 --width 320]
 
 Inputs: ``frame`` (1, 1, H, W) gray float32 (H, W dynamic), ``positions`` (P, 2), ``lost`` (P,) bool and the
-filter state of every pyramid level, ``filters_0`` .. ``filters_{L-1}`` (3, P, N_l, K_l) (real and imaginary
-parts of the numerators and the denominators, finest level first), with a dynamic number of points P. Outputs:
-``positions_out``, ``lost_out``, ``psr`` (P,) and the updated ``filters_l_out``. The graph uses GridSample,
-matrix products for the small DFTs and a fixed number of Newton iterations; the first frame's state comes from
-:meth:`PointTracker.init`.
+filter state of every pyramid level, ``filters_0`` .. ``filters_{L-1}`` (3, N_l, P, K_l) (real and imaginary
+parts of the numerators and the denominators, finest level first, point-interleaved), with a dynamic number of
+points P. Outputs: ``positions_out``, ``lost_out``, ``psr`` (P,) and the updated ``filters_l_out``. The graph
+uses one Gather per level for the patches, matrix products for the small DFTs and a fixed number of Newton
+iterations; the first frame's state comes from :meth:`PointTracker.init`.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def export_tracking_step(
     w = torch.export.Dim("width", min=64, max=4096)
     inputs, outputs = io_names(tracker.levels)
     dynamic = {"frame": {2: h, 3: w}, "positions": {0: p}, "lost": {0: p}}
-    dynamic["filters"] = tuple({1: p} for _ in range(tracker.levels))  # forward's *filters
+    dynamic["filters"] = tuple({2: p} for _ in range(tracker.levels))  # forward's *filters
     with torch.no_grad():
         return export_onnx(tracker, args, path, inputs, outputs, dynamic_shapes=dynamic)
 

@@ -222,9 +222,7 @@ def fourier_series_peak_parts(
 ) -> tuple[Tensor, Tensor]:
     """Sub-bin maximum of the periodic score ``s(t) = sum_k s^[k] exp(i 2 pi k . t / N)``.
 
-    The grid maximum (inverse DFT) starts ``iterations`` Newton steps on the Fourier series (2x2 closed-form
-    solve, steps only where the Hessian is negative definite, at most one bin each); the grid peak is kept
-    where the refined score is lower or the refinement moved more than one bin.
+    The grid maximum (inverse DFT) starts :func:`fourier_series_refine`.
 
     Args:
         sr, si: ``(..., *K)`` real and imaginary parts of the score's half spectrum; size: odd signal size
@@ -235,12 +233,36 @@ def fourier_series_peak_parts(
         shift ``(..., ndim)`` in bins (last axis first, in ``[-N/2, N/2)``); score ``(...)`` at the peak.
     """
     ndim = len(size)
+    v_grid, arg = grid.flatten(-ndim).max(dim=-1)  # the series sampled on the grid
+    index = torch.stack(_unravel(arg, size), dim=-1)
+    return fourier_series_refine(sr, si, size, iterations, index, v_grid, srsi)
+
+
+def fourier_series_refine(
+    sr: Tensor,
+    si: Tensor,
+    size: tuple[int, ...],
+    iterations: int,
+    index: Tensor,
+    value: Tensor,
+    srsi: Tensor | None = None,
+) -> tuple[Tensor, Tensor]:
+    """Newton refinement of a grid maximum of the periodic score ``s(t) = sum_k s^[k] exp(i 2 pi k . t / N)``.
+
+    ``iterations`` Newton steps on the Fourier series (2x2 closed-form solve, steps only where the Hessian is
+    negative definite, at most one bin each) start at the grid maximum; the grid peak is kept where the refined
+    score is lower or the refinement moved more than one bin.
+
+    Args:
+        sr, si, size, srsi: as :func:`fourier_series_peak_parts`. index: ``(..., ndim)`` integer grid position
+        of the maximum (first axis first, in ``[0, N)``); value: ``(...)`` the score there.
+    Returns:
+        shift ``(..., ndim)`` in bins (last axis first, in ``[-N/2, N/2)``); score ``(...)`` at the peak.
+    """
+    ndim = len(size)
     _check_odd(size)
     real_dtype = sr.dtype
-    v_grid, arg = grid.flatten(-ndim).max(dim=-1)  # the series sampled on the grid
-    t0 = torch.stack(
-        [wrap_index(i, n).to(real_dtype) for i, n in zip(_unravel(arg, size), size, strict=True)], dim=-1
-    )
+    t0 = torch.stack([wrap_index(index[..., a], n).to(real_dtype) for a, n in enumerate(size)], dim=-1)
     ks = _frequency_grid((*sr.shape[len(sr.shape) - ndim : -1], 2 * sr.shape[-1] - 1), sr.device, real_dtype)
     w = torch.where(ks[-1] == 0, torch.ones_like(ks[-1]), 2 * torch.ones_like(ks[-1]))
     if ndim == 2 and srsi is None:
@@ -265,10 +287,9 @@ def fourier_series_peak_parts(
         theta = theta + torch.maximum(torch.minimum(step, two_pi_over_n), -two_pi_over_n)
     v_ref, _, _ = _series(sr, si, theta, ks, w, order=0, srsi=srsi)
     t = theta / two_pi_over_n
-    keep = (v_ref >= v_grid) & ((t - t0).abs() <= 1).all(dim=-1)
+    keep = (v_ref >= value) & ((t - t0).abs() <= 1).all(dim=-1)
     t = torch.where(keep.unsqueeze(-1), t, t0)
-    value = torch.where(keep, v_ref, v_grid)
-    return t.flip(-1), value
+    return t.flip(-1), torch.where(keep, v_ref, value)
 
 
 class CcotFilter(nn.Module):

@@ -5,11 +5,13 @@ on a CPU, keep every tensor real (``torch.compile`` and ONNX friendly) and absor
 separable cosine window of the samples, the separable Fourier-domain scale of the continuous filter (cubic
 spline interpolation, :func:`~models.dcf.continuous.ccot_sample`) and the centring of the patch.
 
-Patches come in natural order (pixel ``i`` at offset ``i - N // 2`` from the centre). Spectra use the ``rfft2``
-half layout with FFT-ordered rows (``ky = 0, 1, .., -1``, ``kx = 0 .. N // 2``), as real and imaginary parts,
-and equal ``rfft2`` of the FFT-ordered (centre at index 0) windowed patch times the axis scales. The inverse
-returns the real signal in FFT order (zero shift at index 0), the layout of every response in
-:mod:`models.dcf`.
+Patches come in natural order (pixel ``i`` at offset ``i - N // 2`` from the centre) and with the batch in the
+middle, ``(N, B, N)`` (rows, patches, columns): both transforms are then one large matrix product per axis (the
+last axis multiplied from the right, the first from the left) with no batched small products and no copies.
+Spectra use the same layout, ``(N_f, B, K)``, with the ``rfft2`` half layout per patch: FFT-ordered rows
+(``ky = 0, 1, .., -1``) and ``kx = 0 .. N // 2``, as real and imaginary parts; they equal ``rfft2`` of the
+FFT-ordered (centre at index 0) windowed patch times the axis scales. The inverse returns the real signal in FFT
+order (zero shift at index 0), ``(N, B, N)``.
 
 A band limit ``M < N // 2`` keeps only the frequencies ``|ky|, |kx| <= M`` (rows ``0 .. M, -M .. -1``, columns
 ``0 .. M``): the spectrum of a ``2M + 1``-point signal in the same layout, while the inverse still samples the
@@ -62,6 +64,9 @@ class RealDft2(nn.Module):
         spectrum (the half axis uses the non-negative ones; None: none). dtype: of the matrices.
         band: highest kept frequency ``M`` per axis (None: all, ``N // 2``). The spectra are then
         ``(2M + 1) x (M + 1)``; below, ``N_f = 2M + 1`` and ``K = M + 1``.
+        grid: odd number ``G`` of equispaced samples per axis (period ``N``, spacing ``N / G``) on which the
+        inverse evaluates the signal (None: ``N``, the patch grid). With ``G >= 2M + 1`` the samples still
+        determine the band-limited signal completely (as C-COT samples its scores on the coefficient grid).
     """
 
     def __init__(
@@ -71,6 +76,7 @@ class RealDft2(nn.Module):
         scale: Tensor | None = None,
         dtype=torch.float32,
         band: int | None = None,
+        grid: int | None = None,
     ) -> None:
         super().__init__()
         if n < 1 or n % 2 == 0:
@@ -78,38 +84,44 @@ class RealDft2(nn.Module):
         band = n // 2 if band is None else band
         if not 0 <= band <= n // 2:
             raise ValueError(f"band must lie in [0, {n // 2}] for size {n}, got {band}")
-        self.n, self.band, self.rows_f, self.k = n, band, 2 * band + 1, band + 1
+        grid = n if grid is None else grid
+        if grid < 1 or grid % 2 == 0:
+            raise ValueError(f"the inverse grid must be odd, got {grid}")
+        self.n, self.band, self.rows_f, self.k, self.grid = n, band, 2 * band + 1, band + 1, grid
         cy, sy = _forward_factors(n, band, window, scale, False, dtype)
         cx, sx = _forward_factors(n, band, window, scale, True, dtype)
         self.register_buffer("rows", torch.cat([cy, sy]), persistent=False)  # (2N_f, N): Re, Im rows of the y DFT
         self.register_buffer("cols", torch.cat([cx, sx]).T.contiguous(), persistent=False)  # (N, 2K)
-        # Inverse: x first (half spectrum, weights 1 at kx = 0 and 2 elsewhere, 1 / N^2), then the real part of
-        # the y transform, both onto FFT-ordered offsets.
+        # Inverse: the complex y transform of [Sr | Si] first (cos and sin rows), then the real part of the
+        # x transform (weights 1 at kx = 0 and 2 elsewhere, 1 / N^2), both onto FFT-ordered offsets.
         kx = band_frequencies(n, band, True)
         ky = band_frequencies(n, band, False)
-        pos = full_frequencies(n, None, torch.float64)
+        pos = full_frequencies(grid, None, torch.float64) * (n / grid)  # sample offsets in patch pixels
+        ay = 2 * math.pi * pos[:, None] * ky[None, :] / n
+        self.register_buffer("inv_rows", torch.cat([torch.cos(ay), torch.sin(ay)]).to(dtype),
+                             persistent=False)  # (2G, N_f): [Sr | Si] -> [cos Sr | cos Si] and [sin Sr | sin Si]
         weight = (2 - (kx == 0).to(torch.float64)) / n**2
         ax = 2 * math.pi * kx[:, None] * pos[None, :] / n
         c, s = weight[:, None] * torch.cos(ax), weight[:, None] * torch.sin(ax)
-        self.register_buffer("inv_cols", torch.cat([torch.cat([c, s], 1), torch.cat([-s, c], 1)]).to(dtype),
-                             persistent=False)  # (2K, 2N): [Sr | Si] -> [Ur | Ui]
-        ay = 2 * math.pi * pos[:, None] * ky[None, :] / n
-        self.register_buffer("inv_rows", torch.cat([torch.cos(ay), -torch.sin(ay)], 1).to(dtype),
-                             persistent=False)  # (N, 2N_f)
+        # Re sum_kx (Vr + i Vi) e^{i kx x} with Vr = cos Sr - sin Si, Vi = sin Sr + cos Si
+        self.register_buffer("inv_cols_cos", torch.cat([c, -s]).to(dtype), persistent=False)  # (2K, G)
+        self.register_buffer("inv_cols_sin", torch.cat([-s, -c]).to(dtype), persistent=False)  # (2K, G)
 
     def forward(self, x: Tensor) -> tuple[Tensor, Tensor]:
-        """Spectrum of patches ``(P, N, N)``: real and imaginary parts, each ``(P, N_f, K)``."""
-        if x.shape[-2:] != (self.n, self.n):
-            raise ValueError(f"expected (..., {self.n}, {self.n}) patches, got shape {tuple(x.shape)}")
-        v = torch.matmul(self.rows, x)  # (P, 2N_f, N): y transformed, Re rows then Im rows
-        u = torch.matmul(v, self.cols)  # (P, 2N_f, 2K)
-        r, k = self.rows_f, self.k
-        re = u[..., :r, :k] - u[..., r:, k:]
-        im = u[..., :r, k:] + u[..., r:, :k]
-        return re, im
+        """Spectrum of patches ``(N, B, N)``: real and imaginary parts, each ``(N_f, B, K)``."""
+        if x.dim() != 3 or x.shape[0] != self.n or x.shape[2] != self.n:
+            raise ValueError(f"expected ({self.n}, B, {self.n}) patches, got shape {tuple(x.shape)}")
+        n, b, r, k = self.n, x.shape[1], self.rows_f, self.k
+        u = torch.mm(x.reshape(n * b, n), self.cols).view(n, b * 2 * k)  # x transformed: (N, B, 2K)
+        v = torch.mm(self.rows, u).view(2 * r, b, 2 * k)  # then y: Re rows then Im rows
+        return v[:r, :, :k] - v[r:, :, k:], v[:r, :, k:] + v[r:, :, :k]
 
     def inverse(self, spectrum: Tensor) -> Tensor:
-        """Real signals ``(P, N, N)`` in FFT order from half spectra given as ``[re | im]`` ``(P, N_f, 2K)``."""
-        u = torch.matmul(spectrum, self.inv_cols)  # (P, N_f, 2N): x transformed, [Ur | Ui]
-        u = torch.cat([u[..., : self.n], u[..., self.n :]], -2)  # (P, 2N_f, N)
-        return torch.matmul(self.inv_rows, u)
+        """Real signals ``(G, B, G)`` in FFT order (``G`` = ``grid``, by default ``N``) from half spectra given as
+        ``[re | im]`` ``(N_f, B, 2K)``."""
+        if spectrum.dim() != 3 or spectrum.shape[0] != self.rows_f or spectrum.shape[2] != 2 * self.k:
+            raise ValueError(f"expected ({self.rows_f}, B, {2 * self.k}) spectra, got shape {tuple(spectrum.shape)}")
+        g, b, k2 = self.grid, spectrum.shape[1], 2 * self.k
+        u = torch.mm(self.inv_rows, spectrum.reshape(self.rows_f, b * k2))  # (2G, B * 2K): y transformed
+        out = torch.mm(u[:g].view(g * b, k2), self.inv_cols_cos)
+        return out.addmm_(u[g:].view(g * b, k2), self.inv_cols_sin).view(g, b, g)

@@ -40,8 +40,10 @@ def track_points(
     method: str = "ccot",
     device: str = "cpu",
     progress: bool = False,
+    compile: bool = False,
 ) -> dict[str, np.ndarray]:
-    """Track given points, or ``detect`` good features in the first frame, through gray frames ``(H, W)``.
+    """Track given points, or ``detect`` good features in the first frame, through gray frames ``(H, W)``
+    (``compile``: the DCF trackers' step through ``torch.compile``, see :meth:`PointTracker.track`).
 
     Returns:
         ``tracks`` ``(T, P, 2)``, ``lost`` ``(T, P)``, ``psr`` ``(T, P)`` (NaN for KLT) and the start
@@ -72,7 +74,7 @@ def track_points(
     tracker = PointTracker(method).to(device)
     tensors = [torch.as_tensor(np.asarray(f, np.float32), device=device) for f in frames]
     tracks, lost, psr = tracker.track(
-        tensors, torch.as_tensor(points, dtype=torch.float32), progress=progress
+        tensors, torch.as_tensor(points, dtype=torch.float32), progress=progress, compile=compile
     )
     return {
         "tracks": tracks.double().cpu().numpy(),

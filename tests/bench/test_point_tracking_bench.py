@@ -20,6 +20,7 @@ def test_json_schema_and_plot(tmp_path, capsys):
         assert set(m) >= {"epe_median", "epe_mean", "inlier_frac", "inlier_epe_mean", "point_frames_per_s"}
         assert set(m["precision_at"]) == {"1", "2", "3"}
         assert 0 <= m["precision_at"]["1"] <= m["precision_at"]["3"] == m["inlier_frac"] <= 1
+        assert m["speed_vs_klt"] == m["point_frames_per_s"] / methods["klt"]["point_frames_per_s"]
     assert png.stat().st_size > 10_000
 
 

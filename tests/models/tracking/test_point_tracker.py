@@ -37,12 +37,12 @@ def _translate(img: torch.Tensor, dx: float, dy: float) -> torch.Tensor:
 def test_extract_patches_equals_direct_crop():
     img = torch.arange(20 * 30, dtype=torch.float64).reshape(20, 30)
     centres = torch.tensor([[10.0, 8.0], [15.0, 12.0]], dtype=torch.float64)
-    patches = extract_patches(img[None, None], centres, 5)
+    patches = extract_patches(img[None, None], centres, 5).permute(1, 0, 2)  # (P, 5, 5)
     for patch, (x, y) in zip(patches, centres.long().tolist(), strict=True):
         crop = img[y - 2 : y + 3, x - 2 : x + 3]
         torch.testing.assert_close(patch, crop)  # natural order: centre at index size // 2
     half = extract_patches(img[None, None], torch.tensor([[10.5, 8.25]], dtype=torch.float64), 3)
-    assert half[0, 1, 1].item() == pytest.approx(
+    assert half[1, 0, 1].item() == pytest.approx(
         img[8, 10] * 0.375 + img[8, 11] * 0.375 + img[9, 10] * 0.125 + img[9, 11] * 0.125
     )
 
@@ -58,17 +58,19 @@ def test_extract_patches_equals_grid_sample_with_border_padding(monkeypatch):
     grid = (xy + 0.5) / torch.tensor([31.0, 23.0], dtype=torch.float64) * 2 - 1
     expected = torch.nn.functional.grid_sample(img, grid.reshape(1, -1, size, 2), mode="bilinear",
                                                padding_mode="border", align_corners=False).reshape(-1, size, size)
+    expected = expected.permute(1, 0, 2)  # point-interleaved: (rows, P, columns)
     torch.testing.assert_close(extract_patches(img, centres, size), expected)
     monkeypatch.setattr(torch.compiler, "is_exporting", lambda: True)  # the flat-index gather used for ONNX
     torch.testing.assert_close(extract_patches(img, centres, size), expected)
 
 
-@pytest.mark.parametrize("method", ["ccot", "ccot_ff", "mosse"])
-def test_large_integer_translation_is_recovered(method):
+@pytest.mark.parametrize(("method", "coarse_grid"), [("ccot", True), ("ccot", False), ("ccot_ff", True),
+                                                     ("mosse", True)])
+def test_large_integer_translation_is_recovered(method, coarse_grid):
     img = _smooth_image(160, 192, 0)
     moved = _translate(img, 23.0, -17.0)
     points = torch.tensor([[60.0, 70.0], [100.0, 90.0], [130.0, 60.0], [80.0, 110.0]], dtype=torch.float64)
-    tracker = PointTracker(method).double()
+    tracker = PointTracker(method, coarse_grid=coarse_grid).double()
     tracks, lost, _ = tracker.track([img, moved], points)
     assert not lost.any()
     err = (tracks[1] - points - torch.tensor([23.0, -17.0], dtype=torch.float64)).abs().max().item()
@@ -136,7 +138,9 @@ def test_per_level_settings_are_checked():
         PointTracker("ccot", patch_size=(21, 16, 25))
     tracker = PointTracker("ccot", patch_size=(21, 15, 25), band=(1.0, 0.7, 0.5))
     assert tracker.bands == (10, 5, 6)  # highest kept frequency per level
-    assert tuple(tracker.label_2.shape) == (13, 7)
+    assert tracker.grids == (21, 15, 13)  # the coarsest level scores on its coefficient grid, 2M + 1
+    assert PointTracker("ccot", coarse_grid=False).grids == (21, 15, 25)
+    assert tuple(tracker.label_2.shape) == (13, 1, 7)
     with pytest.raises(InputError, match="band"):
         PointTracker("ccot", band=1.5)
 
@@ -164,3 +168,15 @@ def test_good_features_find_rectangle_corners():
     rng = np.random.default_rng(0)
     many = good_features_to_track(torch.from_numpy(rng.uniform(0, 255, (64, 64))), 20, 0.01, 3)
     assert len(many) == 20
+
+
+def test_compiled_step_equals_eager():
+    img = _smooth_image(96, 128, 6).float()
+    frames = [img, _translate(img.double(), 4.3, -2.6).float(), _translate(img.double(), 7.9, -4.1).float()]
+    points = torch.tensor([[40.0, 50.0], [64.0, 40.0], [90.0, 60.0], [70.0, 30.0]])
+    tracker = PointTracker("ccot")
+    eager = tracker.track(frames, points)
+    compiled = tracker.track(frames, points, compile=True)
+    for got, want in zip(compiled, eager, strict=True):
+        torch.testing.assert_close(got, want, rtol=1e-4, atol=1e-4)
+    assert not eager[1].any()
