@@ -64,9 +64,6 @@ class RealDft2(nn.Module):
         spectrum (the half axis uses the non-negative ones; None: none). dtype: of the matrices.
         band: highest kept frequency ``M`` per axis (None: all, ``N // 2``). The spectra are then
         ``(2M + 1) x (M + 1)``; below, ``N_f = 2M + 1`` and ``K = M + 1``.
-        grid: odd number ``G`` of equispaced samples per axis (period ``N``, spacing ``N / G``) on which the
-        inverse evaluates the signal (None: ``N``, the patch grid). With ``G >= 2M + 1`` the samples still
-        determine the band-limited signal completely (as C-COT samples its scores on the coefficient grid).
     """
 
     def __init__(
@@ -76,7 +73,6 @@ class RealDft2(nn.Module):
         scale: Tensor | None = None,
         dtype=torch.float32,
         band: int | None = None,
-        grid: int | None = None,
     ) -> None:
         super().__init__()
         if n < 1 or n % 2 == 0:
@@ -84,10 +80,7 @@ class RealDft2(nn.Module):
         band = n // 2 if band is None else band
         if not 0 <= band <= n // 2:
             raise ValueError(f"band must lie in [0, {n // 2}] for size {n}, got {band}")
-        grid = n if grid is None else grid
-        if grid < 1 or grid % 2 == 0:
-            raise ValueError(f"the inverse grid must be odd, got {grid}")
-        self.n, self.band, self.rows_f, self.k, self.grid = n, band, 2 * band + 1, band + 1, grid
+        self.n, self.band, self.rows_f, self.k = n, band, 2 * band + 1, band + 1
         cy, sy = _forward_factors(n, band, window, scale, False, dtype)
         cx, sx = _forward_factors(n, band, window, scale, True, dtype)
         self.register_buffer("rows", torch.cat([cy, sy]), persistent=False)  # (2N_f, N): Re, Im rows of the y DFT
@@ -96,16 +89,16 @@ class RealDft2(nn.Module):
         # x transform (weights 1 at kx = 0 and 2 elsewhere, 1 / N^2), both onto FFT-ordered offsets.
         kx = band_frequencies(n, band, True)
         ky = band_frequencies(n, band, False)
-        pos = full_frequencies(grid, None, torch.float64) * (n / grid)  # sample offsets in patch pixels
+        pos = full_frequencies(n, None, torch.float64)
         ay = 2 * math.pi * pos[:, None] * ky[None, :] / n
         self.register_buffer("inv_rows", torch.cat([torch.cos(ay), torch.sin(ay)]).to(dtype),
-                             persistent=False)  # (2G, N_f): [Sr | Si] -> [cos Sr | cos Si] and [sin Sr | sin Si]
+                             persistent=False)  # (2N, N_f): [Sr | Si] -> [cos Sr | cos Si] and [sin Sr | sin Si]
         weight = (2 - (kx == 0).to(torch.float64)) / n**2
         ax = 2 * math.pi * kx[:, None] * pos[None, :] / n
         c, s = weight[:, None] * torch.cos(ax), weight[:, None] * torch.sin(ax)
         # Re sum_kx (Vr + i Vi) e^{i kx x} with Vr = cos Sr - sin Si, Vi = sin Sr + cos Si
-        self.register_buffer("inv_cols_cos", torch.cat([c, -s]).to(dtype), persistent=False)  # (2K, G)
-        self.register_buffer("inv_cols_sin", torch.cat([-s, -c]).to(dtype), persistent=False)  # (2K, G)
+        self.register_buffer("inv_cols_cos", torch.cat([c, -s]).to(dtype), persistent=False)  # (2K, N)
+        self.register_buffer("inv_cols_sin", torch.cat([-s, -c]).to(dtype), persistent=False)  # (2K, N)
 
     def forward(self, x: Tensor) -> tuple[Tensor, Tensor]:
         """Spectrum of patches ``(N, B, N)``: real and imaginary parts, each ``(N_f, B, K)``."""
@@ -117,11 +110,10 @@ class RealDft2(nn.Module):
         return v[:r, :, :k] - v[r:, :, k:], v[:r, :, k:] + v[r:, :, :k]
 
     def inverse(self, spectrum: Tensor) -> Tensor:
-        """Real signals ``(G, B, G)`` in FFT order (``G`` = ``grid``, by default ``N``) from half spectra given as
-        ``[re | im]`` ``(N_f, B, 2K)``."""
+        """Real signals ``(N, B, N)`` in FFT order from half spectra given as ``[re | im]`` ``(N_f, B, 2K)``."""
         if spectrum.dim() != 3 or spectrum.shape[0] != self.rows_f or spectrum.shape[2] != 2 * self.k:
             raise ValueError(f"expected ({self.rows_f}, B, {2 * self.k}) spectra, got shape {tuple(spectrum.shape)}")
-        g, b, k2 = self.grid, spectrum.shape[1], 2 * self.k
-        u = torch.mm(self.inv_rows, spectrum.reshape(self.rows_f, b * k2))  # (2G, B * 2K): y transformed
-        out = torch.mm(u[:g].view(g * b, k2), self.inv_cols_cos)
-        return out.addmm_(u[g:].view(g * b, k2), self.inv_cols_sin).view(g, b, g)
+        n, b, k2 = self.n, spectrum.shape[1], 2 * self.k
+        u = torch.mm(self.inv_rows, spectrum.reshape(self.rows_f, b * k2))  # (2N, B * 2K): y transformed
+        out = torch.mm(u[:n].view(n * b, k2), self.inv_cols_cos)
+        return out.addmm_(u[n:].view(n * b, k2), self.inv_cols_sin).view(n, b, n)

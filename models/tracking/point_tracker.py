@@ -138,11 +138,6 @@ class PointTracker(nn.Module):
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
         the sample spectra and the transforms shrink with it.
-        coarse_grid: the coarsest level (the largest patch, if it has no Newton steps) samples its scores on
-        the filters' coefficient grid, ``2M + 1`` points per axis over the patch (as C-COT samples its scores;
-        the band-limited score is fully determined by them), instead of on the patch's ``N`` pixels; its peak
-        is the grid maximum refined by a parabola either way. The finer levels keep the pixel grid: the next
-        level corrects the coarser estimate, and level 0's estimate and PSR are the output.
     """
 
     def __init__(
@@ -157,7 +152,6 @@ class PointTracker(nn.Module):
         psr_threshold: float = 5.0,
         psr_exclude: int = 7,
         band: float | tuple[float, ...] = 0.7,
-        coarse_grid: bool = True,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -173,10 +167,6 @@ class PointTracker(nn.Module):
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
         self.bands = tuple(max(1, round(f * (n // 2))) for f, n in zip(fractions, self.sizes, strict=True))
-        self.grids = tuple(
-            2 * m + 1 if coarse_grid and level == levels - 1 > 0 and self.newton[level] == 0 else n
-            for level, (n, m) in enumerate(zip(self.sizes, self.bands, strict=True))
-        )
         self.dfts = nn.ModuleList()
         for level, (n, m) in enumerate(zip(self.sizes, self.bands, strict=True)):
             window = cosine_window((n,), dtype=torch.float64).roll(n // 2)  # natural order
@@ -186,7 +176,7 @@ class PointTracker(nn.Module):
             else:  # Fourier coefficients of the cubic-spline interpolated sample (eq. 3.6) and of the label
                 scale = cubic_spline_fourier(full_frequencies(n, None, torch.float64) / n) / n
                 label = continuous_label((n, n), sigma, dtype=torch.float64)
-            dft = RealDft2(n, window, scale, band=m, grid=self.grids[level])
+            dft = RealDft2(n, window, scale, band=m)
             self.dfts.append(dft)
             label = label[band_index(n, m), : m + 1, None].transpose(1, 2)
             self.register_buffer(f"label_{level}", label.float(), persistent=False)  # (2M + 1, 1, M + 1)
@@ -257,9 +247,8 @@ class PointTracker(nn.Module):
         return TrackerState(torch.where(lost.unsqueeze(-1), points, positions), lost, psr, filters)
 
     def _peak(self, spectrum: Tensor, score: Tensor, argmax: tuple[Tensor, Tensor, Tensor], level: int) -> Tensor:
-        """Sub-bin shift ``(P, 2)`` (x, y), in bins of the level's score grid, of the score maximum at ``level``
-        (``spectrum``: ``[re | im]`` ``(2M + 1, P, 2M + 2)``; ``score`` ``(G, P, G)`` and its
-        ``interleaved_argmax``; Newton levels have ``G = N``)."""
+        """Sub-pixel shift ``(P, 2)`` (x, y) of the score maximum at ``level`` (``spectrum``: ``[re | im]``
+        ``(2M + 1, P, 2M + 2)``; ``score`` ``(N, P, N)`` and its ``interleaved_argmax``)."""
         if self.newton[level] == 0:
             return interleaved_peak(score, argmax=argmax)[0]
         n, k = self.sizes[level], self.bands[level] + 1
@@ -297,9 +286,9 @@ class PointTracker(nn.Module):
             mean_energy = b.sum(0).sum(1, keepdim=True) / (b.shape[0] * b.shape[2])  # (P, 1), outer axis first
             inv = 1 / (b + self.reg_rel * mean_energy)
             spectrum = torch.cat([(ar * zr - ai * zi) * inv, (ar * zi + ai * zr) * inv], -1)
-            score = self.dfts[level].inverse(spectrum)  # (G, P, G): G = the level's score grid
+            score = self.dfts[level].inverse(spectrum)  # (N, P, N)
             argmax = interleaved_argmax(score)
-            d = d + 2**level * self.sizes[level] / self.grids[level] * self._peak(spectrum, score, argmax, level)
+            d = d + 2**level * self._peak(spectrum, score, argmax, level)
             spectra.insert(0, (zr, zi))
             centres.insert(0, centre)
         psr = interleaved_psr(score, self.psr_exclude, argmax)

@@ -76,20 +76,3 @@ def test_band_limit_keeps_the_low_frequencies_of_the_full_spectrum(n, band):
     out = _inverse(limited, expected)
     torch.testing.assert_close(out, torch.fft.irfft2(padded, s=(n, n)), rtol=1e-10, atol=1e-10)
 
-
-def test_inverse_on_a_coarser_grid_samples_the_band_limited_signal():
-    n, band, grid = 25, 8, 17
-    gen = torch.Generator().manual_seed(grid)
-    full = torch.fft.fft2(torch.randn(3, n, n, generator=gen, dtype=torch.float64))
-    k = torch.fft.fftfreq(n, 1 / n, dtype=torch.float64)
-    keep = (k.abs() <= band)[:, None] & (k.abs() <= band)[None, :]
-    full = full * keep  # band-limited, still the spectrum of a real signal
-    rows = torch.cat([torch.arange(band + 1), torch.arange(n - band, n)])
-    half = full[:, rows, : band + 1]
-    out = _inverse(RealDft2(n, dtype=torch.float64, band=band, grid=grid), half)
-    t = torch.fft.fftfreq(grid, 1 / grid, dtype=torch.float64) * n / grid  # FFT-ordered offsets in patch pixels
-    phase_y = torch.exp(2j * torch.pi * t[:, None] * k[None, :] / n)  # (G, N)
-    expected = torch.einsum("yk,bkl,xl->byx", phase_y, full, phase_y).real / n**2  # brute-force series
-    torch.testing.assert_close(out, expected, rtol=1e-10, atol=1e-10)
-    with pytest.raises(ValueError, match="grid"):
-        RealDft2(n, band=band, grid=16)

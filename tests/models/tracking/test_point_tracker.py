@@ -64,13 +64,12 @@ def test_extract_patches_equals_grid_sample_with_border_padding(monkeypatch):
     torch.testing.assert_close(extract_patches(img, centres, size), expected)
 
 
-@pytest.mark.parametrize(("method", "coarse_grid"), [("ccot", True), ("ccot", False), ("ccot_ff", True),
-                                                     ("mosse", True)])
-def test_large_integer_translation_is_recovered(method, coarse_grid):
+@pytest.mark.parametrize("method", ["ccot", "ccot_ff", "mosse"])
+def test_large_integer_translation_is_recovered(method):
     img = _smooth_image(160, 192, 0)
     moved = _translate(img, 23.0, -17.0)
     points = torch.tensor([[60.0, 70.0], [100.0, 90.0], [130.0, 60.0], [80.0, 110.0]], dtype=torch.float64)
-    tracker = PointTracker(method, coarse_grid=coarse_grid).double()
+    tracker = PointTracker(method).double()
     tracks, lost, _ = tracker.track([img, moved], points)
     assert not lost.any()
     err = (tracks[1] - points - torch.tensor([23.0, -17.0], dtype=torch.float64)).abs().max().item()
@@ -138,8 +137,6 @@ def test_per_level_settings_are_checked():
         PointTracker("ccot", patch_size=(21, 16, 25))
     tracker = PointTracker("ccot", patch_size=(21, 15, 25), band=(1.0, 0.7, 0.5))
     assert tracker.bands == (10, 5, 6)  # highest kept frequency per level
-    assert tracker.grids == (21, 15, 13)  # the coarsest level scores on its coefficient grid, 2M + 1
-    assert PointTracker("ccot", coarse_grid=False).grids == (21, 15, 25)
     assert tuple(tracker.label_2.shape) == (13, 1, 7)
     with pytest.raises(InputError, match="band"):
         PointTracker("ccot", band=1.5)
