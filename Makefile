@@ -30,7 +30,7 @@ bench: $(STAMP)
 	mkdir -p docs/figures
 	$(PY) bench/triangulation.py --points 1000000 --compile --json --plot docs/figures/triangulation.png
 	$(PY) bench/point_tracking.py --sintel $(SHARED)/sintel/alley_1/clean $(SHARED)/sintel/alley_1/final \
-		--synthetic --json --plot docs/figures/point_tracking.png
+		--synthetic --compile --json --plot docs/figures/point_tracking.png
 	$(PY) bench/localization.py --json --plot docs/figures/localization.png
 	$(PY) bench/vos.py --synthetic --json
 
