@@ -258,6 +258,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     parser.add_argument("--plot", help="write EPE distributions and precision curves to this PNG")
     args = parser.parse_args(argv)
+    if args.repeats < 1:
+        parser.error("--repeats must be at least 1")
     with cpu_threads(args.threads):
         datasets = {}
         for folder in args.sintel:
@@ -266,8 +268,6 @@ def main(argv: list[str] | None = None) -> int:
         if args.synthetic or not datasets:
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed)
         methods = [*args.methods, *([COMPILED] if args.compile else [])]
-        if args.repeats < 1:
-            parser.error("--repeats must be at least 1")
         result = evaluate(datasets, methods, args.device, args.repeats)
     if args.plot:
         plot(result, args.plot)

@@ -77,16 +77,15 @@ def interleaved_psr(
     if n * m - exclude * exclude < 2:
         raise ValueError(f"maps of size {(n, m)} leave no sidelobe outside a {exclude}-wide window")
     peak, row, column = interleaved_argmax(score) if argmax is None else argmax
-    # statistics of values centred by the map mean (accuracy), sidelobe = map minus window
-    total = score.sum(0).sum(1)  # (reductions over the outer axis first, as in interleaved_argmax)
-    centre = total / (n * m)
-    total = total - n * m * centre
+    # statistics of values centred by the map mean (accuracy; the centred map sums to zero), sidelobe = map
+    # minus window; reductions over the outer axis first, as in interleaved_argmax
+    centre = score.sum(0).sum(1) / (n * m)
     squares = score.square().sum(0).sum(1) - n * m * centre.square()
     offsets = torch.arange(exclude, device=score.device) - exclude // 2
     rows = (row[:, None] + offsets)[:, :, None]
     cols = (column[:, None] + offsets)[:, None, :]
     window = score.flatten()[_flat_index(score, rows, cols)].flatten(1) - centre[:, None]  # (P, exclude^2)
     count = n * m - exclude * exclude
-    mean = (total - window.sum(-1)) / count
+    mean = -window.sum(-1) / count
     var = ((squares - window.square().sum(-1)) / count - mean.square()).clamp_min(0)
     return (peak - centre - mean) / (var.sqrt() + eps)

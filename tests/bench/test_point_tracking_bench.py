@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 
 from bench import point_tracking
 
@@ -38,3 +39,9 @@ def test_metrics_against_hand_computed_values():
     assert m["inlier_frac"] == 2 / 3 and m["inlier_epe_mean"] == 1.5
     assert m["precision_at"] == {"1": 1 / 3, "2": 1 / 3, "3": 2 / 3}
     assert m["point_frames_per_s"] == 4 * 2 / 2.0
+
+
+def test_repeats_must_be_positive(capsys):
+    with pytest.raises(SystemExit) as err:
+        point_tracking.main(["--synthetic", "--repeats", "0"])
+    assert err.value.code == 2 and "--repeats must be at least 1" in capsys.readouterr().err
