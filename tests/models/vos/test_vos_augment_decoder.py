@@ -2,11 +2,12 @@
 
 import pytest
 import torch
+import torch.nn.functional as F
 
 from data.errors import InputError
 from models.backbones import ResNetBackbone
 from models.vos.augment import SCALES, first_frame_augment, inpaint_target
-from models.vos.decoder import SegmentationDecoder
+from models.vos.decoder import SegmentationDecoder, bicubic_upsample2x
 
 
 def test_augmentation_keeps_original_and_scales_area() -> None:
@@ -61,3 +62,23 @@ def test_decoder_shapes_shared_features_and_gradients() -> None:
     s2[1] += 5
     b = decoder(s2, feats, (64, 96))
     assert torch.allclose(a[0], b[0]) and not torch.allclose(a[1], b[1])
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("size", [(1, 1), (2, 5), (7, 3), (24, 40)])
+def test_bicubic_upsample2x_equals_interpolate(dtype: torch.dtype, size: tuple[int, int]) -> None:
+    gen = torch.Generator().manual_seed(0)
+    x = torch.randn(2, 3, *size, generator=gen, dtype=dtype, requires_grad=True)
+    g = torch.randn(2, 3, 2 * size[0], 2 * size[1], generator=gen, dtype=dtype)
+    ours = bicubic_upsample2x(x)
+    (grad_ours,) = torch.autograd.grad(ours, x, g)
+    ref = F.interpolate(x, scale_factor=2.0, mode="bicubic", align_corners=False)
+    (grad_ref,) = torch.autograd.grad(ref, x, g)
+    tol = 1e-5 if dtype == torch.float32 else 1e-12
+    torch.testing.assert_close(ours, ref, atol=tol, rtol=tol)
+    torch.testing.assert_close(grad_ours, grad_ref, atol=tol, rtol=tol)
+
+
+def test_bicubic_upsample2x_rejects_non_4d() -> None:
+    with pytest.raises(InputError, match="N, C, H, W"):
+        bicubic_upsample2x(torch.zeros(3, 4, 5))
