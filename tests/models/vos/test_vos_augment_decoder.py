@@ -82,3 +82,13 @@ def test_bicubic_upsample2x_equals_interpolate(dtype: torch.dtype, size: tuple[i
 def test_bicubic_upsample2x_rejects_non_4d() -> None:
     with pytest.raises(InputError, match="N, C, H, W"):
         bicubic_upsample2x(torch.zeros(3, 4, 5))
+
+
+def test_decoder_he_initialisation() -> None:
+    torch.manual_seed(0)
+    decoder = SegmentationDecoder({"layer1": 64, "layer2": 128, "layer3": 256, "layer4": 512}, 64)
+    for module in decoder.modules():
+        if isinstance(module, torch.nn.Conv2d) and module is not decoder.upsampler.conv2:
+            fan_in = module.weight[0].numel()
+            assert abs(module.weight.std().item() / (2 / fan_in) ** 0.5 - 1) < 0.15
+            assert not module.bias.any()
