@@ -1,7 +1,7 @@
 """FRTM video object segmentation benchmark: the full method against its baselines, with DAVIS J&F.
 
     python bench/vos.py [--ckpt CKPT] [--davis ROOT --split NAME --resolution 240p] [--synthetic]
-                        [--speed] [--max-frames N] [--json] [--plot FILE.png]
+                        [--speed [--speed-config YAML ...]] [--max-frames N] [--json] [--plot FILE.png]
 
 Methods: ``frtm`` (target model + decoder), ``target_model_only`` (the upsampled target-model score
 thresholded at 0.5, same memory updates) and ``first_frame_copy`` (the first mask repeated). Each gets ``jf``,
@@ -9,8 +9,11 @@ thresholded at 0.5, same memory updates) and ``first_frame_copy`` (the first mas
 (backbone, target_model, decoder, update, init; init is per video, spread over its frames). Synthetic videos
 take their size, objects per video, distractors and object scale from the checkpoint's data module (the
 configuration it was trained with; explicit options override), on the held-out ``test`` seeds. ``--speed``
-adds FPS of the tracker at 240p and 480p (synthetic frames) for the checkpoint's backbone. Without
-``--ckpt`` the networks are untrained (random weights): useful for speed only.
+adds FPS of the tracker at 240p and 480p (synthetic frames) for the checkpoint's system and, side by side in
+the same run, for the models of any ``--speed-config`` YAML files. Without
+``--ckpt`` the system is built untrained from ``--backbone``/``--weights``/``--feature-layer``/``--feature-norm``
+and the paper's tracker settings: with ``--weights imagenet`` the ``target_model_only`` row measures the
+pretrained features alone (the decoder is random, so the ``frtm`` row means nothing then).
 Prints one JSON object with ``--json``, else a table.
 """
 
@@ -32,6 +35,7 @@ from data.vos.datamodule import synthetic_videos  # noqa: E402
 from data.vos.davis import davis_sequences  # noqa: E402
 from models.vos.lit import FRTMSegmentation  # noqa: E402
 from models.vos.metrics import evaluate_sequence, summarize  # noqa: E402
+from models.vos.target_model import FEATURE_NORMS  # noqa: E402
 from models.vos.tracker import COMPONENTS  # noqa: E402
 
 METHODS = ("frtm", "target_model_only", "first_frame_copy")
@@ -72,22 +76,51 @@ def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, tor
     return out
 
 
-def speed(model: FRTMSegmentation, n_frames: int = 10) -> dict:
-    """Tracker FPS and ms/frame per component at 240p (240x427) and 480p (480x854) on a synthetic video."""
+SPEED_SIZES = {"240p": (240, 427), "480p": (480, 854)}
+
+
+def _speed_once(model: FRTMSegmentation, frames: torch.Tensor, labels: torch.Tensor) -> dict:
+    tracker = model.make_tracker()
+    wall, cpu = time.perf_counter(), time.process_time()
+    list(tracker.segment(frames, {0: labels[0]}))
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    n = frames.shape[0]
+    per_frame = {k: v / n for k, v in tracker.timings.items()}
+    steady = sum(v for k, v in per_frame.items() if k != "init")
+    return {"fps": n / wall, "cpu_s_per_frame": cpu / n, "fps_after_init": 1000 / steady, "ms_per_frame": per_frame}
+
+
+def speed(models: dict[str, FRTMSegmentation], n_frames: int = 24, repeats: int = 2) -> dict:
+    """Tracker FPS, process CPU seconds and ms/frame per component at 240p (240x427) and 480p (480x854) on a
+    synthetic video of ``n_frames`` (first-frame init included; ``fps_after_init`` leaves it out), for each of
+    ``models``. The models take turns, ``repeats`` runs each after one warm-up, and the fastest run counts."""
     from data.vos.synthetic import synthetic_video
 
-    out = {}
-    for name, (h, w) in {"240p": (240, 427), "480p": (480, 854)}.items():
+    out: dict[str, dict] = {name: {} for name in models}
+    for res, (h, w) in SPEED_SIZES.items():
         frames, labels = synthetic_video(3, n_frames=n_frames, height=h, width=w)
-        list(model.make_tracker().segment(frames[:3], {0: labels[0]}))  # warm-up (allocations, thread pools)
-        tracker = model.make_tracker()
-        start = time.perf_counter()
-        list(tracker.segment(frames, {0: labels[0]}))
-        total = time.perf_counter() - start
-        per_frame = {k: v / n_frames for k, v in tracker.timings.items()}
-        steady = sum(v for k, v in per_frame.items() if k != "init")
-        out[name] = {"fps": n_frames / total, "fps_after_init": 1000 / steady, "ms_per_frame": per_frame}
+        for model in models.values():  # warm-up (allocations, thread pools)
+            list(model.make_tracker().segment(frames[:3], {0: labels[0]}))
+        for _ in range(repeats):
+            for name, model in models.items():
+                run = _speed_once(model, frames, labels)
+                if res not in out[name] or run["fps"] > out[name][res]["fps"]:
+                    out[name][res] = run
     return out
+
+
+def model_from_config(path: str) -> FRTMSegmentation:
+    """The (untrained) FRTMSegmentation of a train.py YAML config: same backbone, decoder and tracker settings,
+    so its speed is the trained model's."""
+    import yaml
+
+    if not Path(path).is_file():
+        raise InputError(f"config {path} does not exist")
+    model = yaml.safe_load(Path(path).read_text()).get("model", {})
+    if not str(model.get("class_path", "")).endswith("FRTMSegmentation"):
+        raise InputError(f"config {path} does not configure an FRTMSegmentation model")
+    torch.manual_seed(0)
+    return FRTMSegmentation(**model.get("init_args", {})).eval()
 
 
 SYNTHETIC_DEFAULTS = {"height": 96, "width": 160, "objects": 2, "distractors": 1, "object_scale": (0.15, 0.3)}
@@ -126,16 +159,41 @@ def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Te
     return name, videos
 
 
+def parse_tracker(items: list[str] | None) -> dict:
+    """``["channels=32", "update_schedule=[5]"]`` -> ``{"channels": 32, "update_schedule": [5]}``."""
+    out = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError("no '='")
+            out[key] = json.loads(value)
+        except ValueError as err:  # JSONDecodeError is a ValueError
+            raise InputError(f"--tracker item {item!r} is not KEY=JSON ({err})") from err
+    return out
+
+
 def run(args: argparse.Namespace) -> dict:
-    model = load_model(args.ckpt, backbone=args.backbone)  # untrained: paper-scale decoder and tracker settings
-    result: dict = {"checkpoint": args.ckpt, "backbone": model.hparams.backbone, "threads": torch.get_num_threads(),
-                    "methods": {}}
+    methods = args.methods.split(",")
+    if any(m not in METHODS for m in methods):
+        raise InputError(f"--methods {args.methods!r} names a method that is not one of {', '.join(METHODS)}")
+    tracker = parse_tracker(args.tracker)
+    weights = None if args.weights in (None, "none") else args.weights
+    model = load_model(args.ckpt, backbone=args.backbone, weights=weights, feature_layer=args.feature_layer,
+                       feature_norm=args.feature_norm, tracker=tracker)
+    if args.ckpt and tracker:  # the checkpoint's tracker settings, overridden
+        model.hparams.tracker = {**(model.hparams.tracker or {}), **tracker}
+    h = model.hparams
+    result: dict = {"checkpoint": args.ckpt, "backbone": h.backbone, "weights": h.weights,
+                    "feature_layer": h.feature_layer, "feature_norm": h.feature_norm, "tracker": h.tracker,
+                    "threads": torch.get_num_threads(), "methods": {}}
     if args.davis or args.synthetic or not args.speed:
         result["dataset"], videos = load_videos(args)
-        for method in METHODS:
+        for method in methods:
             result["methods"][method] = run_method(model, method, videos)
     if args.speed:
-        result["speed"] = speed(model)
+        models = {"model": model, **{Path(c).stem: model_from_config(c) for c in args.speed_config or []}}
+        result["speed"] = speed(models, args.speed_frames)
     return result
 
 
@@ -145,9 +203,10 @@ def print_table(result: dict) -> None:
     for name, m in result["methods"].items():
         ms = " ".join(f"{m['ms_per_frame'][k]:.0f}" for k in COMPONENTS) if "ms_per_frame" in m else "-"
         print(f"{name:<20}{100 * m['jf']:7.1f}{100 * m['j']:7.1f}{100 * m['f']:7.1f}{m['fps']:10.2f}  {ms}")
-    for res, s in result.get("speed", {}).items():
-        ms = " ".join(f"{k} {v:.0f}" for k, v in s["ms_per_frame"].items())
-        print(f"speed {res}: {s['fps']:.2f} FPS ({s['fps_after_init']:.2f} after init); ms/frame {ms}")
+    for name, sizes in result.get("speed", {}).items():
+        for res, s in sizes.items():
+            ms = " ".join(f"{k} {v:.0f}" for k, v in s["ms_per_frame"].items())
+            print(f"speed {name} {res}: {s['fps']:.2f} FPS ({s['fps_after_init']:.2f} after init); ms/frame {ms}")
 
 
 def plot(result: dict, path: str) -> None:
@@ -187,8 +246,20 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--object-scale", type=float, nargs=2, metavar=("LOW", "HIGH"),
                    help="object radius range as a fraction of the short side (checkpoint's data, else 0.15 0.3)")
     p.add_argument("--max-frames", type=int, help="cut videos to this many frames")
-    p.add_argument("--backbone", default="resnet18", help="backbone of the untrained model (no --ckpt)")
+    p.add_argument("--backbone", default="resnet18", help="backbone of the untrained model (no --ckpt): resnet18 .. "
+                   "resnet152, efficientnet_lite0 .. efficientnet_lite2")
+    p.add_argument("--weights", help="backbone weights of the untrained model: imagenet, a torchvision name, or "
+                   "none (default)")
+    p.add_argument("--feature-layer", default="layer3", help="target-model stage of the untrained model (layer3)")
+    p.add_argument("--feature-norm", default="none", choices=FEATURE_NORMS,
+                   help="target-model feature scaling of the untrained model (none)")
+    p.add_argument("--tracker", nargs="+", metavar="KEY=JSON",
+                   help="tracker settings over the model's, e.g. channels=32 memory_size=20 'update_schedule=[5]'")
+    p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated subset of {','.join(METHODS)}")
     p.add_argument("--speed", action="store_true", help="measure FPS at 240p and 480p")
+    p.add_argument("--speed-config", nargs="+", action="extend", metavar="YAML",
+                   help="with --speed: also time the (untrained) models of these train.py configs, in the same run")
+    p.add_argument("--speed-frames", type=int, default=24, help="frames of the --speed video (default 24)")
     p.add_argument("--threads", type=int, help="torch intra-op threads (1 is much faster on an oversubscribed CPU)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a J&F-vs-FPS PNG")

@@ -28,7 +28,7 @@ from data.errors import InputError
 from export.onnx import export_onnx, onnx_session, run_onnx
 from models.vos.memory import Memory
 from models.vos.optimizer import SteepestDescent
-from models.vos.target_model import target_model_init
+from models.vos.target_model import normalize_features, target_model_init
 from models.vos.tracker import FRTMTracker, frame_memory_insert
 
 GRAPHS = ("frame", "features", "init", "insert", "update")
@@ -55,11 +55,13 @@ class FrameGraph(nn.Module):
         self.backbone = tracker.backbone
         self.decoder = tracker.decoder if tracker.use_decoder else None
         self.feature_layer = tracker.feature_layer
+        self.feature_norm = tracker.feature_norm
 
     def forward(self, image: torch.Tensor, wp: torch.Tensor, wf: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         feats = self.backbone(image)
         n = wp.shape[0]
-        z = torch.einsum("ncd,dhw->nchw", wp, feats[self.feature_layer][0])
+        x = normalize_features(feats[self.feature_layer][0], self.feature_norm)
+        z = torch.einsum("ncd,dhw->nchw", wp, x)
         score = apply_filter_per_object(z, wf)[:, None]
         size = (image.shape[-2], image.shape[-1])
         if self.decoder is None:
@@ -74,9 +76,10 @@ class FeaturesGraph(nn.Module):
         super().__init__()
         self.backbone = tracker.backbone
         self.feature_layer = tracker.feature_layer
+        self.feature_norm = tracker.feature_norm
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
-        return self.backbone(images)[self.feature_layer]
+        return normalize_features(self.backbone(images)[self.feature_layer], self.feature_norm)
 
 
 class InitGraph(nn.Module):
@@ -126,7 +129,8 @@ class UpdateGraph(nn.Module):
 
 def _settings(tracker: FRTMTracker) -> dict:
     return {
-        "feature_layer": tracker.feature_layer, "channels": tracker.channels, "kernel_size": tracker.kernel_size,
+        "feature_layer": tracker.feature_layer, "feature_norm": tracker.feature_norm, "channels": tracker.channels,
+        "kernel_size": tracker.kernel_size,
         "num_aug": tracker.num_aug, "memory_size": tracker.memory_size, "learning_rate": tracker.learning_rate,
         "update_every": tracker.update_every, "pixel_weighting": tracker.pixel_weighting,
         "fg_target": tracker.fg_target, "min_update_pixels": tracker.min_update_pixels,

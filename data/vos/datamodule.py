@@ -60,7 +60,8 @@ class SyntheticTrainingSamples(Dataset):
 
 class SequenceTrainingSamples(Dataset):
     """Samples from annotated videos (e.g. DAVIS): random sequence, object, reference frame and test frames
-    within ``max_gap`` after it, with the object at least ``min_pixels`` large in the reference frame."""
+    within ``max_gap`` after it, with the object at least ``min_pixels`` large in the reference frame; with
+    probability ``hflip`` the whole sample is mirrored left-right."""
 
     def __init__(
         self,
@@ -70,6 +71,7 @@ class SequenceTrainingSamples(Dataset):
         max_gap: int = 8,
         min_pixels: int = 100,
         scale: float = 1.0,
+        hflip: float = 0.0,
         seed: int = 0,
     ) -> None:
         if not sequences:
@@ -80,6 +82,7 @@ class SequenceTrainingSamples(Dataset):
         self.max_gap = max_gap
         self.min_pixels = min_pixels
         self.scale = scale
+        self.hflip = hflip
         self.seed = seed
         self._cache: dict[int, tuple[torch.Tensor, torch.Tensor]] = {}
 
@@ -107,7 +110,10 @@ class SequenceTrainingSamples(Dataset):
             obj = ids[int(torch.randint(len(ids), (), generator=gen))]
             later = torch.arange(ref + 1, min(t, ref + self.max_gap + 1))
             pick = later[torch.randint(len(later), (self.n_test_frames,), generator=gen)].sort().values
-            return training_sample(frames, labels, obj, ref, pick.tolist())
+            sample = training_sample(frames, labels, obj, ref, pick.tolist())
+            if float(torch.rand((), generator=gen)) < self.hflip:
+                sample = {k: v.flip(-1) for k, v in sample.items()}
+            return sample
         raise InputError("no sequence yields a training sample (objects too small or videos too short)")
 
 
@@ -203,6 +209,7 @@ class DavisVOSDataModule(L.LightningDataModule):
     Args:
         root: DAVIS root (``../shared/data/davis2016`` here); resolution: folder such as ``240p`` or ``480p``.
         scale: resize factor applied to frames and masks after loading (1 = as stored).
+        hflip: probability of mirroring a training sample left-right.
         val_max_frames: cut evaluation videos to this many frames (None = all).
     """
 
@@ -218,6 +225,7 @@ class DavisVOSDataModule(L.LightningDataModule):
         max_gap: int = 8,
         n_test_frames: int = 2,
         scale: float = 1.0,
+        hflip: float = 0.0,
         val_max_frames: int | None = None,
         batch_size: int = 4,
         num_workers: int = 0,
@@ -233,7 +241,8 @@ class DavisVOSDataModule(L.LightningDataModule):
     def train_dataloader(self) -> DataLoader:
         h = self.hparams
         seqs = self._sequences(h.train_split, h.train_sequences)
-        ds = SequenceTrainingSamples(seqs, h.train_samples, h.n_test_frames, h.max_gap, scale=h.scale, seed=h.seed)
+        ds = SequenceTrainingSamples(seqs, h.train_samples, h.n_test_frames, h.max_gap, scale=h.scale, hflip=h.hflip,
+                                     seed=h.seed)
         return DataLoader(ds, batch_size=h.batch_size, shuffle=True, num_workers=h.num_workers, drop_last=True)
 
     def _videos(self) -> DataLoader:

@@ -15,7 +15,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from models.backbones import ResNetBackbone
+from models.backbones import build_backbone
 from models.horizon.column_pool import ColumnPool
 
 
@@ -36,8 +36,8 @@ class HorizonFinder(nn.Module):
     """Pitch and roll regression network.
 
     Args:
-        backbone: torchvision ResNet name (``resnet50`` in the paper).
-        weights: torchvision weights (``"IMAGENET1K_V1"`` in the paper config; None = random init).
+        backbone: backbone name (``models.backbones``: ``resnet50`` in the paper, ``efficientnet_lite0``).
+        weights: ``"imagenet"`` (either family), a torchvision weights name, or None (random init).
         stage: backbone stage feeding the head (``layer4`` = stride 32).
         frozen: freeze the backbone.
         heads, head_channels: column pooling size.
@@ -59,7 +59,7 @@ class HorizonFinder(nn.Module):
     ) -> None:
         super().__init__()
         self.stage = stage
-        self.backbone = ResNetBackbone(backbone, weights=weights, frozen=frozen, stages=(stage,))
+        self.backbone = build_backbone(backbone, weights, frozen, (stage,))
         self.pool = ColumnPool(self.backbone.channels[stage], heads, head_channels)
         self.project = nn.Conv1d(self.pool.out_channels, channels, 1)
         self.context = nn.Conv1d(channels, channels, 3, padding=1, padding_mode="circular")

@@ -17,7 +17,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from models.backbones import ResNetBackbone
+from models.backbones import build_backbone
 from models.horizon.column_pool import ColumnPool
 
 
@@ -45,7 +45,7 @@ class HorizonSegmenter(nn.Module):
     ) -> None:
         super().__init__()
         self.stage = stage
-        self.backbone = ResNetBackbone(backbone, weights=weights, frozen=frozen, stages=(stage,))
+        self.backbone = build_backbone(backbone, weights, frozen, (stage,))
         self.pool = ColumnPool(self.backbone.channels[stage], heads, head_channels, full_panorama=False)
         self.project = nn.Conv1d(self.pool.out_channels, channels, 1)
         self.up1 = nn.ConvTranspose1d(channels, channels, 4, stride=2, padding=1)

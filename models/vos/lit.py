@@ -20,13 +20,13 @@ import torch
 import torch.nn.functional as F
 
 from data.errors import InputError
-from models.backbones import ResNetBackbone
+from models.backbones import build_backbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder
 from models.vos.losses import segmentation_loss
 from models.vos.metrics import evaluate_sequence, summarize, write_csv
 from models.vos.optimizer import GaussNewtonCG, build_optimizer
-from models.vos.target_model import apply_filter, project, target_model_init
+from models.vos.target_model import apply_filter, normalize_features, project, target_model_init
 from models.vos.tracker import FRTMTracker
 
 
@@ -34,11 +34,14 @@ class FRTMSegmentation(L.LightningModule):
     """FRTM video object segmentation system.
 
     Args:
-        backbone: torchvision ResNet name; weights: torchvision weights name or None (random init).
+        backbone: ``resnet18`` .. ``resnet152`` or ``efficientnet_lite0`` .. ``2`` (``models.backbones``);
+            weights: ``"imagenet"``, a torchvision weights name (ResNets) or None (random init).
         train_backbone: train the backbone too (needed without pretrained weights).
         backprop_through_optimizer: with ``train_backbone``, differentiate through the target-model fit.
         mdim: decoder width (64).
         feature_layer: stage the target model reads (layer3, stride 16).
+        feature_norm: ``none`` or ``instance_l2``: scaling of the target model's features
+            (``models.vos.target_model.normalize_features``), in training and in the tracker.
         train_channels, train_num_aug, train_reg, train_schedule, train_optimizer: target model fitted in
             training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
         loss, pos_weight, iou_weight, boundary_weight: decoder loss (``models.vos.losses.segmentation_loss``;
@@ -65,6 +68,7 @@ class FRTMSegmentation(L.LightningModule):
         backprop_through_optimizer: bool = False,
         mdim: int = 64,
         feature_layer: str = "layer3",
+        feature_norm: str = "none",
         train_channels: int = 32,
         train_num_aug: int = 15,
         train_reg: tuple[float, float] = (1e-5, 1e-4),
@@ -86,7 +90,7 @@ class FRTMSegmentation(L.LightningModule):
     ) -> None:
         super().__init__()
         self.save_hyperparameters()
-        self.backbone = ResNetBackbone(backbone, weights, frozen=not train_backbone)
+        self.backbone = build_backbone(backbone, weights, frozen=not train_backbone)
         self.decoder = SegmentationDecoder(self.backbone.channels, mdim)
         optimizer = build_optimizer(train_optimizer, train_schedule, train_reg)
         if isinstance(optimizer, GaussNewtonCG):
@@ -114,7 +118,8 @@ class FRTMSegmentation(L.LightningModule):
 
     def make_tracker(self, use_decoder: bool = True, **overrides) -> FRTMTracker:
         """A tracker sharing this module's backbone and decoder (``tracker`` hyper-parameters + overrides)."""
-        kwargs = {"feature_layer": self.hparams.feature_layer, **(self.hparams.tracker or {}), **overrides}
+        h = self.hparams
+        kwargs = {"feature_layer": h.feature_layer, "feature_norm": h.feature_norm, **(h.tracker or {}), **overrides}
         return FRTMTracker(self.backbone, self.decoder, use_decoder=use_decoder, **kwargs).eval()
 
     def forward(self, frames: torch.Tensor, first_mask: torch.Tensor) -> torch.Tensor:
@@ -131,7 +136,7 @@ class FRTMSegmentation(L.LightningModule):
         b, k = aug_masks.shape[:2]
         differentiable = self.training and h.train_backbone and h.backprop_through_optimizer
         with contextlib.nullcontext() if differentiable else torch.no_grad():
-            x = self.backbone(aug_images.flatten(0, 1))[h.feature_layer]
+            x = normalize_features(self.backbone(aug_images.flatten(0, 1))[h.feature_layer], h.feature_norm)
             x = x.view(b, k, *x.shape[1:])
             gamma = x.new_ones(b, k)
             gamma[:, 0] = 2
@@ -145,7 +150,7 @@ class FRTMSegmentation(L.LightningModule):
         test = batch["test_images"]
         b, t = test.shape[:2]
         feats = self.backbone(test.flatten(0, 1))
-        x = feats[self.hparams.feature_layer]
+        x = normalize_features(feats[self.hparams.feature_layer], self.hparams.feature_norm)
         score = apply_filter(project(x.view(b, t, *x.shape[1:]), wp), wf)
         logits = self.decoder(score.flatten(0, 1)[:, None], feats, tuple(test.shape[-2:]))
         h = self.hparams

@@ -28,6 +28,22 @@ from torch import nn
 
 from data.errors import InputError
 
+FEATURE_NORMS = ("none", "instance_l2")
+
+
+def normalize_features(x: torch.Tensor, norm: str = "none") -> torch.Tensor:
+    """Features the target model reads: ``"none"`` keeps them, ``"instance_l2"`` scales each sample to unit root
+    mean square over its channels and pixels (LWL's InstanceL2Norm), so that the regularisation constants mean
+    the same for every backbone (ImageNet EfficientNet-Lite stages have an RMS of about 6-9, ResNets about 1).
+
+    Shapes: x (..., D, h, w) -> same.
+    """
+    if norm == "none":
+        return x
+    if norm != "instance_l2":
+        raise InputError(f"feature_norm must be one of {FEATURE_NORMS}, got {norm!r}")
+    return x * torch.rsqrt(x.pow(2).mean(dim=(-3, -2, -1), keepdim=True).clamp_min(1e-12))
+
 
 def project(x: torch.Tensor, wp: torch.Tensor) -> torch.Tensor:
     """W_p * x: (B, K, D, h, w), (B, C, D) -> (B, K, C, h, w)."""
@@ -39,19 +55,24 @@ def project_grad(gz: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return torch.einsum("bkchw,bkdhw->bcd", gz, x)
 
 
-def _shifted(x: torch.Tensor, pad: int, dy: int, dx: int, h: int, w: int) -> torch.Tensor:
-    """The (h, w) window at offset (dy, dx) of x (..., h', w') zero-padded by ``pad`` on each side."""
-    return F.pad(x, (pad, pad, pad, pad))[..., dy : dy + h, dx : dx + w]
+def _tap_windows(q: torch.Tensor, size: int) -> torch.Tensor:
+    """Q[..., (dy, dx), y, x] = q[..., y + p - dy, x + p - dx] (zero outside), p = size // 2, for every tap of a
+    size x size filter: (..., h, w) -> (..., size^2, h, w)."""
+    h, w = q.shape[-2:]
+    p = size // 2
+    qp = F.pad(q, (p, p, p, p))
+    return torch.stack([qp[..., 2 * p - dy : 2 * p - dy + h, 2 * p - dx : 2 * p - dx + w]
+                        for dy in range(size) for dx in range(size)], -3)
 
 
 def apply_filter(z: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
     """W_f * z as a grouped convolution (zero padding, same size): (B, K, C, h, w), (B, C, k, k) -> (B, K, h, w)."""
     b, k, c, h, w = z.shape
     pad = wf.shape[-1] // 2
-    if z.dtype == torch.float64:  # s = sum_(dy, dx) <W_f[:, dy, dx], z shifted by (dy - pad, dx - pad)>
+    if z.dtype == torch.float64:  # per tap t = <W_f[:, dy, dx], z> (one GEMM), then s = sum of shifted taps
         n = wf.shape[-1]
-        return sum(torch.einsum("bkchw,bc->bkhw", _shifted(z, pad, dy, dx, h, w), wf[:, :, dy, dx])
-                   for dy in range(n) for dx in range(n))
+        taps = F.pad(torch.einsum("bkchw,bcq->bkqhw", z, wf.flatten(2)), (pad, pad, pad, pad))
+        return sum(taps[:, :, dy * n + dx, dy : dy + h, dx : dx + w] for dy in range(n) for dx in range(n))
     out = F.conv2d(z.transpose(0, 1).reshape(k, b * c, h, w), wf, padding=pad, groups=b)
     return out.transpose(0, 1)
 
@@ -61,10 +82,8 @@ def apply_filter_transpose(q: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
     b, k, h, w = q.shape
     c = wf.shape[1]
     pad = wf.shape[-1] // 2
-    if q.dtype == torch.float64:  # g[c, y, x] = sum_(dy, dx) q[y - dy + pad, x - dx + pad] W_f[c, dy, dx]
-        n = wf.shape[-1]
-        return sum(torch.einsum("bkhw,bc->bkchw", _shifted(q, pad, 2 * pad - dy, 2 * pad - dx, h, w),
-                                wf[:, :, dy, dx]) for dy in range(n) for dx in range(n))
+    if q.dtype == torch.float64:  # g[c, y, x] = sum_(dy, dx) q[y + pad - dy, x + pad - dx] W_f[c, dy, dx]
+        return torch.einsum("bkqhw,bcq->bkchw", _tap_windows(q, wf.shape[-1]), wf.flatten(2))
     out = F.conv_transpose2d(q.transpose(0, 1), wf, padding=pad, groups=b)
     return out.reshape(k, b, c, h, w).transpose(0, 1)
 
@@ -73,10 +92,8 @@ def filter_grad(z: torch.Tensor, q: torch.Tensor, size: int) -> torch.Tensor:
     """Adjoint of ``apply_filter`` in W_f (a convolution of z by q): (B, K, C, h, w), (B, K, h, w) -> (B, C, k, k)."""
     b, k, c, h, w = z.shape
     pad = size // 2
-    if z.dtype == torch.float64:  # g[c, dy, dx] = sum_(k, y, x) z shifted by (dy - pad, dx - pad) * q
-        rows = [torch.stack([torch.einsum("bkchw,bkhw->bc", _shifted(z, pad, dy, dx, h, w), q)
-                             for dx in range(size)], -1) for dy in range(size)]
-        return torch.stack(rows, -2)
+    if z.dtype == torch.float64:  # g[c, dy, dx] = sum_(k, y, x) z[c, y, x] q[y + pad - dy, x + pad - dx]
+        return torch.einsum("bkchw,bkqhw->bcq", z, _tap_windows(q, size)).view(b, c, size, size)
     out = F.conv2d(z.permute(2, 0, 1, 3, 4).reshape(c, b * k, h, w), q, padding=pad, groups=b)
     return out.transpose(0, 1)
 

@@ -19,13 +19,20 @@ import torch.nn.functional as F
 from torch import nn
 
 from data.errors import InputError
-from models.backbones import ResNetBackbone
+from models.backbones import Backbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder
 from models.vos.memory import Memory, memory_init, memory_insert
 from models.vos.merge import merge_objects
 from models.vos.optimizer import build_optimizer
-from models.vos.target_model import apply_filter, hinge_pixel_weights, project, target_model_init
+from models.vos.target_model import (
+    FEATURE_NORMS,
+    apply_filter,
+    hinge_pixel_weights,
+    normalize_features,
+    project,
+    target_model_init,
+)
 
 COMPONENTS = ("backbone", "target_model", "decoder", "update", "init")
 
@@ -53,6 +60,7 @@ class FRTMTracker(nn.Module):
         backbone: feature extractor returning ``feature_layer`` and the decoder's stages.
         decoder: segmentation decoder, or None (target-model-only segmentation).
         feature_layer: stage the target model reads (stride 16; FRTM: ResNet layer3).
+        feature_norm: ``none`` or ``instance_l2`` (unit-RMS features per frame, ``normalize_features``).
         channels: C, the projection width (96 at inference, 32 in training).
         kernel_size: W_f size (3).
         num_aug: first-frame samples including the original (5).
@@ -74,9 +82,10 @@ class FRTMTracker(nn.Module):
 
     def __init__(
         self,
-        backbone: ResNetBackbone,
+        backbone: Backbone,
         decoder: SegmentationDecoder | None = None,
         feature_layer: str = "layer3",
+        feature_norm: str = "none",
         channels: int = 96,
         kernel_size: int = 3,
         num_aug: int = 5,
@@ -101,6 +110,9 @@ class FRTMTracker(nn.Module):
         self.backbone = backbone
         self.decoder = decoder
         self.feature_layer = feature_layer
+        if feature_norm not in FEATURE_NORMS:
+            raise InputError(f"feature_norm must be one of {FEATURE_NORMS}, got {feature_norm!r}")
+        self.feature_norm = feature_norm
         self.channels = channels
         self.kernel_size = kernel_size
         self.num_aug = num_aug
@@ -156,7 +168,8 @@ class FRTMTracker(nn.Module):
 
     def target_features(self, images: torch.Tensor) -> torch.Tensor:
         """Target-model features (M, D, h, w) of images (M, 3, H, W)."""
-        return torch.cat([self.backbone(x[None])[self.feature_layer] for x in images])
+        feats = torch.cat([self.backbone(x[None])[self.feature_layer] for x in images])
+        return normalize_features(feats, self.feature_norm)
 
     def fit_target_models(
         self, x: torch.Tensor, y: torch.Tensor, v: torch.Tensor, gamma: torch.Tensor
@@ -176,7 +189,8 @@ class FRTMTracker(nn.Module):
         feats = self.backbone(image[None])
         self._toc("backbone", start, device)
         start = self._tic(device)
-        z = project(feats[self.feature_layer][:, None], self.wp)[:, 0]  # (N, C, h, w)
+        x = normalize_features(feats[self.feature_layer], self.feature_norm)
+        z = project(x[:, None], self.wp)[:, 0]  # (N, C, h, w)
         score = apply_filter(z[:, None], self.wf)[:, 0]  # (N, h, w)
         self._toc("target_model", start, device)
         start = self._tic(device)

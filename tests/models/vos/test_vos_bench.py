@@ -1,5 +1,6 @@
 """bench/vos.py: the first-frame-copy baseline and the JSON layout on a tiny synthetic video set."""
 
+import pytest
 import torch
 
 from bench.vos import load_model, parse_args, run_method, synthetic_settings
@@ -29,3 +30,31 @@ def test_synthetic_settings_follow_the_checkpoint_data(tmp_path) -> None:
     assert got == {"height": 64, "width": 112, "objects": 3, "distractors": 0, "object_scale": (0.25, 0.45)}
     default = synthetic_settings(parse_args(["--synthetic"]))
     assert default == {"height": 96, "width": 160, "objects": 2, "distractors": 1, "object_scale": (0.15, 0.3)}
+
+
+def test_tracker_overrides_and_method_checks() -> None:
+    from bench.vos import parse_tracker, run
+    from data.errors import InputError
+
+    assert parse_tracker(["channels=32", "update_schedule=[5, 5]", "label_stride=2"]) == {
+        "channels": 32, "update_schedule": [5, 5], "label_stride": 2}
+    for bad in (["channels"], ["channels=thirty"]):
+        with pytest.raises(InputError, match="KEY=JSON"):
+            parse_tracker(bad)
+    with pytest.raises(InputError, match="frtm2"):
+        run(parse_args(["--methods", "frtm,frtm2"]))
+
+
+def test_untrained_pretrained_system_and_speed_side_by_side(tmp_path) -> None:
+    from bench.vos import model_from_config, speed
+
+    model = load_model(None, backbone="efficientnet_lite0", weights="imagenet", feature_layer="layer2",
+                       feature_norm="instance_l2", mdim=8, tracker={"channels": 8, "num_aug": 2, "memory_size": 4,
+                                                                    "init_schedule": [2], "update_schedule": [2]})
+    assert model.backbone.channels["layer2"] == 40 and model.make_tracker().feature_norm == "instance_l2"
+    config = tmp_path / "tiny.yaml"
+    config.write_text("model:\n  class_path: models.vos.lit.FRTMSegmentation\n  init_args:\n    mdim: 8\n    tracker:"
+                      " {channels: 8, num_aug: 2, memory_size: 4, init_schedule: [2], update_schedule: [2]}\n")
+    out = speed({"lite0": model, "r18": model_from_config(str(config))}, n_frames=3, repeats=1)
+    assert set(out) == {"lite0", "r18"} and set(out["lite0"]) == {"240p", "480p"}
+    assert all(out[m][r]["fps"] > 0 and out[m][r]["cpu_s_per_frame"] > 0 for m in out for r in out[m])

@@ -1,4 +1,4 @@
-"""ResNet feature extractor shared by the horizon networks (ch. 4.3) and the VOS networks (ch. 5).
+"""ResNet feature extractor (torchvision) for the horizon networks (ch. 4.3) and the VOS networks (ch. 5).
 
 ``ResNetBackbone`` wraps a torchvision ResNet without its average pool and classifier and returns the four
 residual stages. Stage names follow torchvision (``layer1`` .. ``layer4``, strides 4, 8, 16, 32); FRTM's code
@@ -13,21 +13,21 @@ import torchvision
 from torch import nn
 
 from data.errors import InputError
+from models.backbones.base import STAGES, STRIDES, Backbone, check_stages
 
-STAGES = ("layer1", "layer2", "layer3", "layer4")
-STRIDES = {"layer1": 4, "layer2": 8, "layer3": 16, "layer4": 32}
 _IMAGENET_MEAN = (0.485, 0.456, 0.406)
 _IMAGENET_STD = (0.229, 0.224, 0.225)
-_NAMES = ("resnet18", "resnet34", "resnet50", "resnet101", "resnet152")
+RESNETS = ("resnet18", "resnet34", "resnet50", "resnet101", "resnet152")
 
 
-class ResNetBackbone(nn.Module):
+class ResNetBackbone(Backbone):
     """Torchvision ResNet returning the four stages as a dict.
 
     Args:
         name: one of ``resnet18``, ``resnet34``, ``resnet50``, ``resnet101``, ``resnet152``.
-        weights: torchvision weights name (e.g. ``"IMAGENET1K_V1"``, ``"DEFAULT"``) or ``None`` for random
-            initialisation. Weights are downloaded by torchvision into its cache on first use.
+        weights: torchvision weights name (e.g. ``"IMAGENET1K_V1"``, ``"DEFAULT"``; ``"imagenet"`` means
+            ``"IMAGENET1K_V1"``, the weights FRTM used) or ``None`` for random initialisation. Weights are
+            downloaded by torchvision into its cache on first use.
         frozen: if True, no parameter takes gradients and batch norm stays in eval mode even in ``train()``.
         stages: the stages ``forward`` computes; deeper stages than the deepest requested are skipped.
 
@@ -44,16 +44,11 @@ class ResNetBackbone(nn.Module):
         stages: tuple[str, ...] | list[str] = STAGES,
     ) -> None:
         super().__init__()
-        if name not in _NAMES:
-            raise InputError(f"backbone name {name!r} is not one of {', '.join(_NAMES)}")
-        stages = tuple(stages)
-        unknown = [s for s in stages if s not in STAGES]
-        if unknown or not stages:
-            raise InputError(f"backbone stages {stages!r} must be a non-empty subset of {STAGES}")
+        if name not in RESNETS:
+            raise InputError(f"backbone name {name!r} is not one of {', '.join(RESNETS)}")
         self.name = name
-        self.frozen = frozen
-        self.stages = tuple(s for s in STAGES if s in stages)
-        net = getattr(torchvision.models, name)(weights=weights)
+        self.stages = check_stages(stages)
+        net = getattr(torchvision.models, name)(weights="IMAGENET1K_V1" if weights == "imagenet" else weights)
         self.stem = nn.Sequential(net.conv1, net.bn1, net.relu, net.maxpool)
         deepest = STAGES.index(self.stages[-1])
         self.layers = nn.ModuleDict({s: getattr(net, s) for s in STAGES[: deepest + 1]})
@@ -62,13 +57,7 @@ class ResNetBackbone(nn.Module):
         self.strides = {s: STRIDES[s] for s in self.stages}
         self.register_buffer("mean", torch.tensor(_IMAGENET_MEAN).view(1, 3, 1, 1), persistent=False)
         self.register_buffer("std", torch.tensor(_IMAGENET_STD).view(1, 3, 1, 1), persistent=False)
-        if frozen:
-            self.requires_grad_(False)
-            self.eval()
-
-    def train(self, mode: bool = True) -> ResNetBackbone:
-        """Switch mode; a frozen backbone always stays in eval mode (batch-norm statistics fixed)."""
-        return super().train(mode and not self.frozen)
+        self.freeze(frozen)
 
     def forward(self, image: torch.Tensor) -> dict[str, torch.Tensor]:
         """Features of ``image``.
@@ -79,8 +68,7 @@ class ResNetBackbone(nn.Module):
         Returns:
             ``{stage: (B, channels[stage], ~H / stride, ~W / stride)}`` for the requested stages.
         """
-        if image.ndim != 4 or image.shape[1] != 3:
-            raise InputError(f"backbone input must be (B, 3, H, W) RGB, got shape {tuple(image.shape)}")
+        self.check_image(image)
         x = self.stem((image - self.mean.to(image.dtype)) / self.std.to(image.dtype))
         out: dict[str, torch.Tensor] = {}
         for stage, layer in self.layers.items():

@@ -1,10 +1,10 @@
-"""ResNetBackbone: stage shapes, channels, frozen behaviour and input checks."""
+"""ResNetBackbone: stage shapes, channels, frozen behaviour and input checks; the backbone factory."""
 
 import pytest
 import torch
 
 from data.errors import InputError
-from models.backbones import ResNetBackbone
+from models.backbones import EfficientNetLiteBackbone, ResNetBackbone, build_backbone
 
 
 @pytest.mark.parametrize("name, c3", [("resnet18", 256), ("resnet50", 1024)])
@@ -37,3 +37,11 @@ def test_bad_input() -> None:
         ResNetBackbone("resnet7")
     with pytest.raises(InputError, match="RGB"):
         ResNetBackbone("resnet18")(torch.rand(1, 1, 32, 32))
+
+
+def test_factory_builds_both_families_by_name() -> None:
+    assert isinstance(build_backbone("resnet18", stages=("layer2",)), ResNetBackbone)
+    lite = build_backbone("efficientnet_lite0", None, stages=("layer2",))
+    assert isinstance(lite, EfficientNetLiteBackbone) and lite.channels == {"layer2": 40}
+    with pytest.raises(InputError, match="efficientnet_lite0"):
+        build_backbone("mobilenet")

@@ -1,0 +1,33 @@
+"""SequenceTrainingSamples: reference/test frames of one object, and the left-right mirroring option."""
+
+import torch
+
+from data.vos.datamodule import SequenceTrainingSamples
+
+
+class FakeSequence:
+    """A VOSSequence stand-in: 6 random frames with a labelled block that moves right."""
+
+    name = "fake"
+
+    def load(self, max_frames=None):
+        frames = torch.randint(0, 256, (6, 3, 12, 16), generator=torch.Generator().manual_seed(0), dtype=torch.uint8)
+        labels = torch.zeros(6, 12, 16, dtype=torch.long)
+        for t in range(6):
+            labels[t, 3:9, t : t + 6] = 1
+        return frames, labels
+
+
+def test_sample_is_object_masks_of_later_frames() -> None:
+    sample = SequenceTrainingSamples([FakeSequence()], 4, n_test_frames=2, max_gap=3, min_pixels=10, seed=1)[0]
+    assert sample["ref_image"].shape == (3, 12, 16) and sample["test_images"].shape == (2, 3, 12, 16)
+    assert sample["ref_mask"].sum() == 36 and set(sample["test_masks"].unique().tolist()) == {0.0, 1.0}
+
+
+def test_hflip_mirrors_every_tensor_of_the_same_sample() -> None:
+    kept = SequenceTrainingSamples([FakeSequence()], 8, min_pixels=10, hflip=0.0, seed=3)
+    mirrored = SequenceTrainingSamples([FakeSequence()], 8, min_pixels=10, hflip=1.0, seed=3)
+    for i in range(8):
+        a, b = kept[i], mirrored[i]
+        for key in a:
+            assert torch.equal(b[key], a[key].flip(-1)), key
