@@ -5,8 +5,9 @@
 
 Methods: ``frtm`` (target model + decoder), ``target_model_only`` (the upsampled target-model score
 thresholded at 0.5, same memory updates) and ``first_frame_copy`` (the first mask repeated). Each gets ``jf``,
-``j``, ``f`` (DAVIS protocol, means over objects), ``fps`` and milliseconds per frame per component
-(backbone, target_model, decoder, update, init; init is per video, spread over its frames). Synthetic videos
+``j``, ``f`` (DAVIS protocol, means over objects; per object of each sequence under ``per_sequence``), ``fps``
+and milliseconds per frame per component (backbone, target_model, decoder, update, init; init is per video,
+spread over its frames). Synthetic videos
 take their size, objects per video, distractors and object scale from the checkpoint's data module (the
 configuration it was trained with; explicit options override), on the held-out ``test`` seeds. ``--speed``
 adds FPS of the tracker at 240p and 480p (synthetic frames) for the checkpoint's system and, side by side in
@@ -72,7 +73,8 @@ def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, tor
     out = {"jf": glob["J&F-Mean"], "j": glob["J-Mean"], "f": glob["F-Mean"], "fps": frames_total / seconds}
     if method != "first_frame_copy":
         out["ms_per_frame"] = {k: v / frames_total for k, v in timings.items()}
-    out["per_sequence"] = {n: {str(o): s["J&F-Mean"] for o, s in objs.items()} for n, objs in per_seq.items()}
+    out["per_sequence"] = {name: {str(o): {"jf": s["J&F-Mean"], "j": s["J-Mean"], "f": s["F-Mean"]}
+                                  for o, s in objects.items()} for name, objects in per_seq.items()}
     return out
 
 
@@ -180,12 +182,13 @@ def run(args: argparse.Namespace) -> dict:
     tracker = parse_tracker(args.tracker)
     weights = None if args.weights in (None, "none") else args.weights
     model = load_model(args.ckpt, backbone=args.backbone, weights=weights, feature_layer=args.feature_layer,
-                       feature_norm=args.feature_norm, tracker=tracker)
+                       feature_norm=args.feature_norm, feature_scale=args.feature_scale, tracker=tracker)
     if args.ckpt and tracker:  # the checkpoint's tracker settings, overridden
         model.hparams.tracker = {**(model.hparams.tracker or {}), **tracker}
     h = model.hparams
     result: dict = {"checkpoint": args.ckpt, "backbone": h.backbone, "weights": h.weights,
-                    "feature_layer": h.feature_layer, "feature_norm": h.feature_norm, "tracker": h.tracker,
+                    "feature_layer": h.feature_layer, "feature_norm": h.feature_norm, "feature_scale": h.feature_scale,
+                    "tracker": h.tracker,
                     "threads": torch.get_num_threads(), "methods": {}}
     if args.davis or args.synthetic or not args.speed:
         result["dataset"], videos = load_videos(args)
@@ -253,6 +256,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--feature-layer", default="layer3", help="target-model stage of the untrained model (layer3)")
     p.add_argument("--feature-norm", default="none", choices=FEATURE_NORMS,
                    help="target-model feature scaling of the untrained model (none)")
+    p.add_argument("--feature-scale", type=float, default=1.0,
+                   help="with --feature-norm fixed: divide the target-model features by this (default 1)")
     p.add_argument("--tracker", nargs="+", metavar="KEY=JSON",
                    help="tracker settings over the model's, e.g. channels=32 memory_size=20 'update_schedule=[5]'")
     p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated subset of {','.join(METHODS)}")
@@ -266,27 +271,33 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def demo(train_seconds: float = 25.0) -> None:
-    """Small train-and-segment run (about 1 minute on 2 cores): a tiny FRTM trained for ``train_seconds`` on
-    synthetic samples (train.py's loop), then the three methods on 2 short held-out videos; prints the table.
-    Far too short to learn much: it shows the pipeline, ``configs/demo/frtm.yaml`` is the real CPU demo."""
+def demo(train_seconds: float = 60.0, height: int = 96, width: int = 160) -> None:
+    """Small train-and-segment run on synthetic videos, as in the paper: the frozen ImageNet EfficientNet-Lite0
+    backbone (the target model on its stride-8 stage), a small decoder trained for ``train_seconds`` with the
+    target model in the loop (train.py's loop), then the three methods on 2 held-out videos of ``height`` x
+    ``width`` px; prints the table. ``configs/frtm_lite0_davis2016_cpu.yaml`` is the real CPU training."""
     import lightning as L
 
     from data.vos.datamodule import SyntheticVOSDataModule
 
     torch.manual_seed(0)
-    model = FRTMSegmentation(train_backbone=True, mdim=8, train_channels=16, train_num_aug=2, train_schedule=(3,),
+    model = FRTMSegmentation(backbone="efficientnet_lite0", weights="imagenet", feature_layer="layer2",
+                             feature_norm="instance_l2", mdim=16, train_channels=16, train_num_aug=2,
+                             train_schedule=(3, 5), loss="bce_iou", amsgrad=False,
                              tracker={"channels": 16, "num_aug": 3, "memory_size": 10, "init_schedule": [3, 5],
                                       "update_schedule": [5], "update_every": 4})
-    data = SyntheticVOSDataModule(train_samples=64, height=64, width=96, batch_size=2, max_gap=4)
+    data = SyntheticVOSDataModule(train_samples=512, height=height, width=width, batch_size=4, max_gap=4,
+                                  n_objects=2, n_distractors=0, object_scale=(0.25, 0.45))
     trainer = L.Trainer(accelerator="cpu", max_epochs=1, max_time={"seconds": train_seconds}, logger=False,
                         enable_checkpointing=False, enable_progress_bar=False, enable_model_summary=False,
                         limit_val_batches=0)
     trainer.fit(model, datamodule=data)
-    print(f"trained {trainer.global_step} steps in <= {train_seconds:.0f} s")
-    args = parse_args(["--videos", "2", "--max-frames", "8", "--height", "64", "--width", "96"])
+    print(f"trained the decoder {trainer.global_step} steps in <= {train_seconds:.0f} s on the frozen ImageNet "
+          "EfficientNet-Lite0")
+    args = parse_args(["--videos", "2", "--max-frames", "12", "--height", str(height), "--width", str(width),
+                       "--objects", "2", "--distractors", "0", "--object-scale", "0.25", "0.45"])
     _, videos = load_videos(args)
-    result = {"dataset": "synthetic:2x64x96", "checkpoint": "demo (in memory)",
+    result = {"dataset": f"synthetic:2x{height}x{width}", "checkpoint": "demo (in memory)",
               "methods": {m: run_method(model.eval(), m, videos) for m in METHODS}}
     print_table(result)
 

@@ -55,12 +55,12 @@ class FrameGraph(nn.Module):
         self.backbone = tracker.backbone
         self.decoder = tracker.decoder if tracker.use_decoder else None
         self.feature_layer = tracker.feature_layer
-        self.feature_norm = tracker.feature_norm
+        self.feature_norm, self.feature_scale = tracker.feature_norm, tracker.feature_scale
 
     def forward(self, image: torch.Tensor, wp: torch.Tensor, wf: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         feats = self.backbone(image)
         n = wp.shape[0]
-        x = normalize_features(feats[self.feature_layer][0], self.feature_norm)
+        x = normalize_features(feats[self.feature_layer][0], self.feature_norm, self.feature_scale)
         z = torch.einsum("ncd,dhw->nchw", wp, x)
         score = apply_filter_per_object(z, wf)[:, None]
         size = (image.shape[-2], image.shape[-1])
@@ -76,10 +76,11 @@ class FeaturesGraph(nn.Module):
         super().__init__()
         self.backbone = tracker.backbone
         self.feature_layer = tracker.feature_layer
-        self.feature_norm = tracker.feature_norm
+        self.feature_norm, self.feature_scale = tracker.feature_norm, tracker.feature_scale
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
-        return normalize_features(self.backbone(images)[self.feature_layer], self.feature_norm)
+        feats = self.backbone(images)[self.feature_layer]
+        return normalize_features(feats, self.feature_norm, self.feature_scale)
 
 
 class InitGraph(nn.Module):
@@ -129,7 +130,8 @@ class UpdateGraph(nn.Module):
 
 def _settings(tracker: FRTMTracker) -> dict:
     return {
-        "feature_layer": tracker.feature_layer, "feature_norm": tracker.feature_norm, "channels": tracker.channels,
+        "feature_layer": tracker.feature_layer, "feature_norm": tracker.feature_norm,
+        "feature_scale": tracker.feature_scale, "channels": tracker.channels,
         "kernel_size": tracker.kernel_size,
         "num_aug": tracker.num_aug, "memory_size": tracker.memory_size, "learning_rate": tracker.learning_rate,
         "update_every": tracker.update_every, "pixel_weighting": tracker.pixel_weighting,

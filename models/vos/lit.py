@@ -40,8 +40,9 @@ class FRTMSegmentation(L.LightningModule):
         backprop_through_optimizer: with ``train_backbone``, differentiate through the target-model fit.
         mdim: decoder width (64).
         feature_layer: stage the target model reads (layer3, stride 16).
-        feature_norm: ``none`` or ``instance_l2``: scaling of the target model's features
-            (``models.vos.target_model.normalize_features``), in training and in the tracker.
+        feature_norm, feature_scale: ``none``, ``fixed`` (divided by ``feature_scale``) or ``instance_l2``: scaling
+            of the target model's features (``models.vos.target_model.normalize_features``), in training and in
+            the tracker.
         train_channels, train_num_aug, train_reg, train_schedule, train_optimizer: target model fitted in
             training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
         loss, pos_weight, iou_weight, boundary_weight: decoder loss (``models.vos.losses.segmentation_loss``;
@@ -69,6 +70,7 @@ class FRTMSegmentation(L.LightningModule):
         mdim: int = 64,
         feature_layer: str = "layer3",
         feature_norm: str = "none",
+        feature_scale: float = 1.0,
         train_channels: int = 32,
         train_num_aug: int = 15,
         train_reg: tuple[float, float] = (1e-5, 1e-4),
@@ -119,7 +121,8 @@ class FRTMSegmentation(L.LightningModule):
     def make_tracker(self, use_decoder: bool = True, **overrides) -> FRTMTracker:
         """A tracker sharing this module's backbone and decoder (``tracker`` hyper-parameters + overrides)."""
         h = self.hparams
-        kwargs = {"feature_layer": h.feature_layer, "feature_norm": h.feature_norm, **(h.tracker or {}), **overrides}
+        kwargs = {"feature_layer": h.feature_layer, "feature_norm": h.feature_norm,
+                  "feature_scale": h.feature_scale, **(h.tracker or {}), **overrides}
         return FRTMTracker(self.backbone, self.decoder, use_decoder=use_decoder, **kwargs).eval()
 
     def forward(self, frames: torch.Tensor, first_mask: torch.Tensor) -> torch.Tensor:
@@ -136,7 +139,8 @@ class FRTMSegmentation(L.LightningModule):
         b, k = aug_masks.shape[:2]
         differentiable = self.training and h.train_backbone and h.backprop_through_optimizer
         with contextlib.nullcontext() if differentiable else torch.no_grad():
-            x = normalize_features(self.backbone(aug_images.flatten(0, 1))[h.feature_layer], h.feature_norm)
+            x = self.backbone(aug_images.flatten(0, 1))[h.feature_layer]
+            x = normalize_features(x, h.feature_norm, h.feature_scale)
             x = x.view(b, k, *x.shape[1:])
             gamma = x.new_ones(b, k)
             gamma[:, 0] = 2
@@ -146,14 +150,14 @@ class FRTMSegmentation(L.LightningModule):
         return wp, wf
 
     def training_step(self, batch: dict[str, torch.Tensor], batch_idx: int) -> torch.Tensor:
+        h = self.hparams
         wp, wf = self._fit_target_models(batch["ref_image"], batch["ref_mask"])
         test = batch["test_images"]
         b, t = test.shape[:2]
         feats = self.backbone(test.flatten(0, 1))
-        x = normalize_features(feats[self.hparams.feature_layer], self.hparams.feature_norm)
+        x = normalize_features(feats[h.feature_layer], h.feature_norm, h.feature_scale)
         score = apply_filter(project(x.view(b, t, *x.shape[1:]), wp), wf)
         logits = self.decoder(score.flatten(0, 1)[:, None], feats, tuple(test.shape[-2:]))
-        h = self.hparams
         masks = batch["test_masks"].flatten(0, 1)
         loss = segmentation_loss(logits[:, 0], masks, h.loss, h.pos_weight, h.iou_weight, h.boundary_weight)
         if h.target_loss_weight > 0:

@@ -26,8 +26,8 @@ from models.vos.memory import Memory, memory_init, memory_insert
 from models.vos.merge import merge_objects
 from models.vos.optimizer import build_optimizer
 from models.vos.target_model import (
-    FEATURE_NORMS,
     apply_filter,
+    check_feature_norm,
     hinge_pixel_weights,
     normalize_features,
     project,
@@ -60,7 +60,8 @@ class FRTMTracker(nn.Module):
         backbone: feature extractor returning ``feature_layer`` and the decoder's stages.
         decoder: segmentation decoder, or None (target-model-only segmentation).
         feature_layer: stage the target model reads (stride 16; FRTM: ResNet layer3).
-        feature_norm: ``none`` or ``instance_l2`` (unit-RMS features per frame, ``normalize_features``).
+        feature_norm, feature_scale: ``none``, ``fixed`` (divided by ``feature_scale``) or ``instance_l2``
+            (unit-RMS features per frame); ``models.vos.target_model.normalize_features``.
         channels: C, the projection width (96 at inference, 32 in training).
         kernel_size: W_f size (3).
         num_aug: first-frame samples including the original (5).
@@ -86,6 +87,7 @@ class FRTMTracker(nn.Module):
         decoder: SegmentationDecoder | None = None,
         feature_layer: str = "layer3",
         feature_norm: str = "none",
+        feature_scale: float = 1.0,
         channels: int = 96,
         kernel_size: int = 3,
         num_aug: int = 5,
@@ -110,9 +112,9 @@ class FRTMTracker(nn.Module):
         self.backbone = backbone
         self.decoder = decoder
         self.feature_layer = feature_layer
-        if feature_norm not in FEATURE_NORMS:
-            raise InputError(f"feature_norm must be one of {FEATURE_NORMS}, got {feature_norm!r}")
+        check_feature_norm(feature_norm, feature_scale)
         self.feature_norm = feature_norm
+        self.feature_scale = feature_scale
         self.channels = channels
         self.kernel_size = kernel_size
         self.num_aug = num_aug
@@ -169,7 +171,7 @@ class FRTMTracker(nn.Module):
     def target_features(self, images: torch.Tensor) -> torch.Tensor:
         """Target-model features (M, D, h, w) of images (M, 3, H, W)."""
         feats = torch.cat([self.backbone(x[None])[self.feature_layer] for x in images])
-        return normalize_features(feats, self.feature_norm)
+        return normalize_features(feats, self.feature_norm, self.feature_scale)
 
     def fit_target_models(
         self, x: torch.Tensor, y: torch.Tensor, v: torch.Tensor, gamma: torch.Tensor
@@ -189,7 +191,7 @@ class FRTMTracker(nn.Module):
         feats = self.backbone(image[None])
         self._toc("backbone", start, device)
         start = self._tic(device)
-        x = normalize_features(feats[self.feature_layer], self.feature_norm)
+        x = normalize_features(feats[self.feature_layer], self.feature_norm, self.feature_scale)
         z = project(x[:, None], self.wp)[:, 0]  # (N, C, h, w)
         score = apply_filter(z[:, None], self.wf)[:, 0]  # (N, h, w)
         self._toc("target_model", start, device)

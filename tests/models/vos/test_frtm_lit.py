@@ -77,3 +77,20 @@ def test_target_loss_adds_the_weighted_target_model_error() -> None:
     torch.testing.assert_close(losses[1] - losses[0], torch.tensor(2 * logged[0]), rtol=1e-4, atol=1e-6)
     losses[1].backward()  # the target term reaches the stage the target model reads
     assert model.backbone.layers["layer2"][0].conv1.weight.grad.abs().sum() > 0
+
+
+def test_frozen_pretrained_backbone_trains_only_the_decoder() -> None:
+    ds = SyntheticTrainingSamples(2, n_test_frames=2, max_gap=3, height=48, width=64)
+    batch = torch.utils.data.default_collate([ds[0], ds[1]])
+    model = FRTMSegmentation(backbone="efficientnet_lite0", weights="imagenet", feature_layer="layer2",
+                             feature_norm="instance_l2", mdim=8, train_channels=8, train_num_aug=2,
+                             train_schedule=(2, 2)).train()
+    model.log = lambda *a, **k: None
+    assert not model.backbone.training
+    model.training_step(batch, 0).backward()
+    assert all(p.grad is None for p in model.backbone.parameters())
+    assert all(p.grad is not None for p in model.decoder.parameters() if p.requires_grad)
+    tracker = model.make_tracker(channels=8, num_aug=2, memory_size=4, init_schedule=[2], update_schedule=[2])
+    frames = (batch["test_images"][0] * 255).to(torch.uint8)
+    labels = list(tracker.segment(frames, {0: batch["test_masks"][0, 0].long()}))
+    assert tracker.feature_norm == "instance_l2" and len(labels) == 2 and labels[0].shape == (48, 64)

@@ -19,6 +19,8 @@ def test_first_frame_copy_and_target_model_only() -> None:
     tm = run_method(model, "target_model_only", videos)
     assert set(tm) == {"jf", "j", "f", "fps", "ms_per_frame", "per_sequence"} and tm["fps"] > 0
     assert 0 <= tm["jf"] <= 1 and set(tm["per_sequence"][videos[0][0]]) == {"1", "2"}
+    obj = tm["per_sequence"][videos[0][0]]["1"]
+    assert set(obj) == {"jf", "j", "f"} and abs(obj["jf"] - (obj["j"] + obj["f"]) / 2) < 1e-12
     assert parse_args(["--davis", "x", "--split", "val"]).resolution == "480p"
 
 
