@@ -6,7 +6,6 @@ import torch
 import torch.nn.functional as F
 
 from data.errors import InputError
-
 from models.vos.optimizer import GaussNewtonCG, SteepestDescent
 from models.vos.target_model import (
     TargetModel,
