@@ -36,7 +36,7 @@ from data.vos.datamodule import synthetic_videos  # noqa: E402
 from data.vos.davis import davis_sequences  # noqa: E402
 from models.vos.lit import FRTMSegmentation  # noqa: E402
 from models.vos.metrics import evaluate_sequence, summarize  # noqa: E402
-from models.vos.target_model import FEATURE_NORMS  # noqa: E402
+from models.vos.target_features import FEATURE_NORMS  # noqa: E402
 from models.vos.tracker import COMPONENTS  # noqa: E402
 
 METHODS = ("frtm", "target_model_only", "first_frame_copy")
@@ -253,7 +253,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    "resnet152, efficientnet_lite0 .. efficientnet_lite2")
     p.add_argument("--weights", help="backbone weights of the untrained model: imagenet, a torchvision name, or "
                    "none (default)")
-    p.add_argument("--feature-layer", default="layer3", help="target-model stage of the untrained model (layer3)")
+    p.add_argument("--feature-layer", default="layer3",
+                   help="target-model stage(s) of the untrained model: layer3 (default), layer2, layer2+layer3, ...")
     p.add_argument("--feature-norm", default="none", choices=FEATURE_NORMS,
                    help="target-model feature scaling of the untrained model (none)")
     p.add_argument("--feature-scale", type=float, default=1.0,

@@ -28,7 +28,7 @@ from data.errors import InputError
 from export.onnx import export_onnx, onnx_session, run_onnx
 from models.vos.memory import Memory
 from models.vos.optimizer import SteepestDescent
-from models.vos.target_model import normalize_features, target_model_init
+from models.vos.target_model import target_model_init
 from models.vos.tracker import FRTMTracker, frame_memory_insert
 
 GRAPHS = ("frame", "features", "init", "insert", "update")
@@ -54,14 +54,12 @@ class FrameGraph(nn.Module):
         super().__init__()
         self.backbone = tracker.backbone
         self.decoder = tracker.decoder if tracker.use_decoder else None
-        self.feature_layer = tracker.feature_layer
-        self.feature_norm, self.feature_scale = tracker.feature_norm, tracker.feature_scale
+        self.target_input = tracker.target_input
 
     def forward(self, image: torch.Tensor, wp: torch.Tensor, wf: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         feats = self.backbone(image)
         n = wp.shape[0]
-        x = normalize_features(feats[self.feature_layer][0], self.feature_norm, self.feature_scale)
-        z = torch.einsum("ncd,dhw->nchw", wp, x)
+        z = torch.einsum("ncd,dhw->nchw", wp, self.target_input(feats)[0])
         score = apply_filter_per_object(z, wf)[:, None]
         size = (image.shape[-2], image.shape[-1])
         if self.decoder is None:
@@ -75,12 +73,10 @@ class FeaturesGraph(nn.Module):
     def __init__(self, tracker: FRTMTracker) -> None:
         super().__init__()
         self.backbone = tracker.backbone
-        self.feature_layer = tracker.feature_layer
-        self.feature_norm, self.feature_scale = tracker.feature_norm, tracker.feature_scale
+        self.target_input = tracker.target_input
 
     def forward(self, images: torch.Tensor) -> torch.Tensor:
-        feats = self.backbone(images)[self.feature_layer]
-        return normalize_features(feats, self.feature_norm, self.feature_scale)
+        return self.target_input(self.backbone(images))
 
 
 class InitGraph(nn.Module):
@@ -138,7 +134,7 @@ def _settings(tracker: FRTMTracker) -> dict:
         "fg_target": tracker.fg_target, "min_update_pixels": tracker.min_update_pixels,
         "label_stride": tracker.label_stride, "optimizer_dtype": tracker.optimizer_dtype,
         "use_decoder": tracker.use_decoder, "seed": tracker.seed,
-        "in_channels": tracker.backbone.channels[tracker.feature_layer],
+        "in_channels": tracker.target_input.channels,
     }
 
 
@@ -148,8 +144,8 @@ def export_frtm(tracker: FRTMTracker, out_dir: str | Path, height: int = 96, wid
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     tracker = tracker.eval()
-    c, k, d = tracker.channels, tracker.kernel_size, tracker.backbone.channels[tracker.feature_layer]
-    stride = tracker.backbone.strides[tracker.feature_layer]
+    c, k, d = tracker.channels, tracker.kernel_size, tracker.target_input.channels
+    stride = tracker.target_input.stride
     h, w = -(-height // stride), -(-width // stride)
     lh, lw = tracker._label_size((height, width))
     n_obj, n_aug, n_mem = 2, max(tracker.num_aug, 2), 3

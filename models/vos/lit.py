@@ -26,7 +26,8 @@ from models.vos.decoder import SegmentationDecoder
 from models.vos.losses import segmentation_loss
 from models.vos.metrics import evaluate_sequence, summarize, write_csv
 from models.vos.optimizer import GaussNewtonCG, build_optimizer
-from models.vos.target_model import apply_filter, normalize_features, project, target_model_init
+from models.vos.target_features import TargetFeatures
+from models.vos.target_model import apply_filter, project, target_model_init
 from models.vos.tracker import FRTMTracker
 
 
@@ -39,9 +40,10 @@ class FRTMSegmentation(L.LightningModule):
         train_backbone: train the backbone too (needed without pretrained weights).
         backprop_through_optimizer: with ``train_backbone``, differentiate through the target-model fit.
         mdim: decoder width (64).
-        feature_layer: stage the target model reads (layer3, stride 16).
+        feature_layer: stage the target model reads (layer3, stride 16), or stages joined by ``+``
+            (``layer2+layer3``: concatenated at stride 8, as DAVOS).
         feature_norm, feature_scale: ``none``, ``fixed`` (divided by ``feature_scale``) or ``instance_l2``: scaling
-            of the target model's features (``models.vos.target_model.normalize_features``), in training and in
+            of the target model's features (``models.vos.target_features.normalize_features``), in training and in
             the tracker.
         train_channels, train_num_aug, train_reg, train_schedule, train_optimizer: target model fitted in
             training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
@@ -93,6 +95,8 @@ class FRTMSegmentation(L.LightningModule):
         super().__init__()
         self.save_hyperparameters()
         self.backbone = build_backbone(backbone, weights, frozen=not train_backbone)
+        self.target_input = TargetFeatures(feature_layer, self.backbone.channels, self.backbone.strides,
+                                           feature_norm, feature_scale)
         self.decoder = SegmentationDecoder(self.backbone.channels, mdim)
         optimizer = build_optimizer(train_optimizer, train_schedule, train_reg)
         if isinstance(optimizer, GaussNewtonCG):
@@ -139,8 +143,7 @@ class FRTMSegmentation(L.LightningModule):
         b, k = aug_masks.shape[:2]
         differentiable = self.training and h.train_backbone and h.backprop_through_optimizer
         with contextlib.nullcontext() if differentiable else torch.no_grad():
-            x = self.backbone(aug_images.flatten(0, 1))[h.feature_layer]
-            x = normalize_features(x, h.feature_norm, h.feature_scale)
+            x = self.target_input(self.backbone(aug_images.flatten(0, 1)))
             x = x.view(b, k, *x.shape[1:])
             gamma = x.new_ones(b, k)
             gamma[:, 0] = 2
@@ -155,7 +158,7 @@ class FRTMSegmentation(L.LightningModule):
         test = batch["test_images"]
         b, t = test.shape[:2]
         feats = self.backbone(test.flatten(0, 1))
-        x = normalize_features(feats[h.feature_layer], h.feature_norm, h.feature_scale)
+        x = self.target_input(feats)
         score = apply_filter(project(x.view(b, t, *x.shape[1:]), wp), wf)
         logits = self.decoder(score.flatten(0, 1)[:, None], feats, tuple(test.shape[-2:]))
         masks = batch["test_masks"].flatten(0, 1)

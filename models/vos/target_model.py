@@ -28,32 +28,6 @@ from torch import nn
 
 from data.errors import InputError
 
-FEATURE_NORMS = ("none", "fixed", "instance_l2")
-
-
-def check_feature_norm(norm: str, scale: float) -> None:
-    """``InputError`` unless ``norm`` is one of ``FEATURE_NORMS`` and ``scale`` is positive."""
-    if norm not in FEATURE_NORMS:
-        raise InputError(f"feature_norm must be one of {FEATURE_NORMS}, got {norm!r}")
-    if not scale > 0:
-        raise InputError(f"feature_scale must be positive, got {scale}")
-
-
-def normalize_features(x: torch.Tensor, norm: str = "none", scale: float = 1.0) -> torch.Tensor:
-    """Features the target model reads, scaled so that the regularisation constants mean the same for every
-    backbone (ImageNet EfficientNet-Lite stages have an RMS of about 6-9, ResNets about 1): ``"none"`` keeps
-    them, ``"fixed"`` divides by ``scale`` (e.g. the stage's RMS over natural images), ``"instance_l2"`` scales
-    each sample to unit root mean square over its channels and pixels (LWL's InstanceL2Norm).
-
-    Shapes: x (..., D, h, w) -> same.
-    """
-    check_feature_norm(norm, scale)
-    if norm == "none":
-        return x
-    if norm == "fixed":
-        return x / scale
-    return x * torch.rsqrt(x.pow(2).mean(dim=(-3, -2, -1), keepdim=True).clamp_min(1e-12))
-
 
 def project(x: torch.Tensor, wp: torch.Tensor) -> torch.Tensor:
     """W_p * x: (B, K, D, h, w), (B, C, D) -> (B, K, C, h, w)."""

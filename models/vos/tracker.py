@@ -25,11 +25,10 @@ from models.vos.decoder import SegmentationDecoder
 from models.vos.memory import Memory, memory_init, memory_insert
 from models.vos.merge import merge_objects
 from models.vos.optimizer import build_optimizer
+from models.vos.target_features import TargetFeatures
 from models.vos.target_model import (
     apply_filter,
-    check_feature_norm,
     hinge_pixel_weights,
-    normalize_features,
     project,
     target_model_init,
 )
@@ -59,9 +58,10 @@ class FRTMTracker(nn.Module):
     Args:
         backbone: feature extractor returning ``feature_layer`` and the decoder's stages.
         decoder: segmentation decoder, or None (target-model-only segmentation).
-        feature_layer: stage the target model reads (stride 16; FRTM: ResNet layer3).
+        feature_layer: stage the target model reads (stride 16; FRTM: ResNet layer3), or stages joined by ``+``
+            at the first one's resolution (``layer2+layer3``, DAVOS); ``TargetFeatures``.
         feature_norm, feature_scale: ``none``, ``fixed`` (divided by ``feature_scale``) or ``instance_l2``
-            (unit-RMS features per frame); ``models.vos.target_model.normalize_features``.
+            (unit-RMS features per frame); ``models.vos.target_features.normalize_features``.
         channels: C, the projection width (96 at inference, 32 in training).
         kernel_size: W_f size (3).
         num_aug: first-frame samples including the original (5).
@@ -107,12 +107,11 @@ class FRTMTracker(nn.Module):
         seed: int = 0,
     ) -> None:
         super().__init__()
-        if feature_layer not in backbone.channels:
-            raise InputError(f"backbone does not return the target-model stage {feature_layer!r}")
+        self.target_input = TargetFeatures(feature_layer, backbone.channels, backbone.strides, feature_norm,
+                                           feature_scale)
         self.backbone = backbone
         self.decoder = decoder
         self.feature_layer = feature_layer
-        check_feature_norm(feature_norm, feature_scale)
         self.feature_norm = feature_norm
         self.feature_scale = feature_scale
         self.channels = channels
@@ -170,8 +169,7 @@ class FRTMTracker(nn.Module):
 
     def target_features(self, images: torch.Tensor) -> torch.Tensor:
         """Target-model features (M, D, h, w) of images (M, 3, H, W)."""
-        feats = torch.cat([self.backbone(x[None])[self.feature_layer] for x in images])
-        return normalize_features(feats, self.feature_norm, self.feature_scale)
+        return torch.cat([self.target_input(self.backbone(x[None])) for x in images])
 
     def fit_target_models(
         self, x: torch.Tensor, y: torch.Tensor, v: torch.Tensor, gamma: torch.Tensor
@@ -191,8 +189,7 @@ class FRTMTracker(nn.Module):
         feats = self.backbone(image[None])
         self._toc("backbone", start, device)
         start = self._tic(device)
-        x = normalize_features(feats[self.feature_layer], self.feature_norm, self.feature_scale)
-        z = project(x[:, None], self.wp)[:, 0]  # (N, C, h, w)
+        z = project(self.target_input(feats)[:, None], self.wp)[:, 0]  # (N, C, h, w)
         score = apply_filter(z[:, None], self.wf)[:, 0]  # (N, h, w)
         self._toc("target_model", start, device)
         start = self._tic(device)

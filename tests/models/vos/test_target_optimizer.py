@@ -5,13 +5,11 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from data.errors import InputError
 from models.vos.optimizer import GaussNewtonCG, SteepestDescent
 from models.vos.target_model import (
     TargetModel,
     TargetModelLoss,
     hinge_pixel_weights,
-    normalize_features,
     target_model_init,
     upsample,
 )
@@ -215,19 +213,3 @@ def test_float64_shifted_einsums_equal_per_problem_convolutions(size: int) -> No
     torch.testing.assert_close((wf * gf).flatten(1).sum(1), lhs, rtol=1e-12, atol=1e-12)
     torch.testing.assert_close(apply_filter(z.float(), wf.float()).double(), s, rtol=1e-4, atol=1e-4)
 
-
-def test_feature_norms_against_per_sample_loops() -> None:
-    x = torch.randn(3, 2, 5, 4, 6, generator=torch.Generator().manual_seed(0), dtype=torch.float64) * 7
-    assert torch.equal(normalize_features(x), x)
-    torch.testing.assert_close(normalize_features(x, "fixed", 7.0), x / 7.0)
-    unit = normalize_features(x, "instance_l2")
-    for i in range(3):
-        for j in range(2):
-            sample = x[i, j]
-            torch.testing.assert_close(unit[i, j], sample / (sample**2).sum().div(sample.numel()).sqrt())
-            assert abs(float((unit[i, j] ** 2).mean()) - 1) < 1e-12
-    assert torch.equal(normalize_features(torch.zeros(1, 2, 3, 3), "instance_l2"), torch.zeros(1, 2, 3, 3))
-    with pytest.raises(InputError, match="feature_norm"):
-        normalize_features(x, "batch")
-    with pytest.raises(InputError, match="feature_scale"):
-        normalize_features(x, "fixed", 0.0)
