@@ -272,7 +272,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def demo(train_seconds: float = 60.0, height: int = 96, width: int = 160) -> None:
+def demo(train_seconds: float = 120.0, height: int = 96, width: int = 160) -> None:
     """Small train-and-segment run on synthetic videos, as in the paper: the frozen ImageNet EfficientNet-Lite0
     backbone (the target model on its stride-8 stage), a small decoder trained for ``train_seconds`` with the
     target model in the loop (train.py's loop), then the three methods on 2 held-out videos of ``height`` x
@@ -287,7 +287,7 @@ def demo(train_seconds: float = 60.0, height: int = 96, width: int = 160) -> Non
                              train_schedule=(3, 5), loss="bce_iou", amsgrad=False,
                              tracker={"channels": 16, "num_aug": 3, "memory_size": 10, "init_schedule": [3, 5],
                                       "update_schedule": [5], "update_every": 4})
-    data = SyntheticVOSDataModule(train_samples=512, height=height, width=width, batch_size=4, max_gap=4,
+    data = SyntheticVOSDataModule(train_samples=4096, height=height, width=width, batch_size=4, max_gap=4,
                                   n_objects=2, n_distractors=0, object_scale=(0.25, 0.45))
     trainer = L.Trainer(accelerator="cpu", max_epochs=1, max_time={"seconds": train_seconds}, logger=False,
                         enable_checkpointing=False, enable_progress_bar=False, enable_model_summary=False,
