@@ -7,12 +7,11 @@ Methods: ``frtm`` (target model + decoder), ``target_model_only`` (the upsampled
 thresholded at 0.5, same memory updates) and ``first_frame_copy`` (the first mask repeated). Each gets ``jf``,
 ``j``, ``f`` (DAVIS protocol, means over objects; per object of each sequence under ``per_sequence``), ``fps``
 and milliseconds per frame per component (backbone, target_model, decoder, update, init; init is per video,
-spread over its frames). Synthetic videos
-take their size, objects per video, distractors and object scale from the checkpoint's data module (the
-configuration it was trained with; explicit options override), on the held-out ``test`` seeds. ``--speed``
-adds FPS of the tracker at 240p and 480p (synthetic frames) for the checkpoint's system and, side by side in
-the same run, for the models of any ``--speed-config`` YAML files. Without
-``--ckpt`` the system is built untrained from ``--backbone``/``--weights``/``--feature-layer``/``--feature-norm``
+spread over its frames). Synthetic videos take their size, objects per video, distractors and object scale
+from the checkpoint's data module (the configuration it was trained with; explicit options override), on the
+held-out ``test`` seeds. ``--speed`` adds FPS of the tracker at 240p and 480p (synthetic frames) for the
+checkpoint's system and, side by side in the same run, for the models of any ``--speed-config`` YAML files.
+Without ``--ckpt`` the system is built untrained from ``--backbone``/``--weights``/``--feature-layer``/``--feature-norm``
 and the paper's tracker settings: with ``--weights imagenet`` the ``target_model_only`` row measures the
 pretrained features alone (the decoder is random, so the ``frtm`` row means nothing then).
 Prints one JSON object with ``--json``, else a table.

@@ -26,12 +26,7 @@ from models.vos.memory import Memory, memory_init, memory_insert
 from models.vos.merge import merge_objects
 from models.vos.optimizer import build_optimizer
 from models.vos.target_features import TargetFeatures
-from models.vos.target_model import (
-    apply_filter,
-    hinge_pixel_weights,
-    project,
-    target_model_init,
-)
+from models.vos.target_model import apply_filter, hinge_pixel_weights, project, target_model_init
 
 COMPONENTS = ("backbone", "target_model", "decoder", "update", "init")
 
