@@ -12,8 +12,8 @@ from the checkpoint's data module (the configuration it was trained with; explic
 held-out ``test`` seeds. ``--speed`` adds FPS of the tracker at 240p and 480p (synthetic frames) for the
 checkpoint's system and, side by side in the same run, for the models of any ``--speed-config`` YAML files.
 Without ``--ckpt`` the system is built untrained from ``--backbone``/``--weights``/``--feature-layer``/
-``--feature-norm`` and the paper's tracker settings: with ``--weights imagenet`` the ``target_model_only`` row measures the
-pretrained features alone (the decoder is random, so the ``frtm`` row means nothing then).
+``--feature-norm`` and the paper's tracker settings: with ``--weights imagenet`` the ``target_model_only``
+row measures the pretrained features alone (the decoder is random, so the ``frtm`` row means nothing then).
 Prints one JSON object with ``--json``, else a table.
 """
 
