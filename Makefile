@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench venv clean
+.PHONY: demo test test-fast lint bench venv clean
 
 venv: $(STAMP)
 
@@ -24,15 +24,19 @@ lint: $(STAMP)
 test: lint
 	$(PY) -m pytest
 
+# The suite without the tests marked slow (compile, LightningCLI fits, ONNX exports): under 2 minutes.
+test-fast: lint
+	$(PY) -m pytest -m "not slow"
+
 # Full benchmarks (minutes each); real data is read from $(SHARED) when present.
 SHARED ?= ../shared/data
 bench: $(STAMP)
 	mkdir -p docs/figures
-	$(PY) bench/triangulation.py --points 1000000 --compile --json --plot docs/figures/triangulation.png
-	$(PY) bench/point_tracking.py --sintel $(SHARED)/sintel/alley_1/clean $(SHARED)/sintel/alley_1/final \
+	$(PY) -m bench.triangulation --points 1000000 --compile --json --plot docs/figures/triangulation.png
+	$(PY) -m bench.point_tracking --sintel $(SHARED)/sintel/alley_1/clean $(SHARED)/sintel/alley_1/final \
 		--synthetic --compile --json --plot docs/figures/point_tracking.png
-	$(PY) bench/localization.py --json --plot docs/figures/localization.png
-	$(PY) bench/vos.py --synthetic --json
+	$(PY) -m bench.localization --json --plot docs/figures/localization.png
+	$(PY) -m bench.vos --synthetic --json
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -1,6 +1,6 @@
 """Accuracy of the classical horizon pipeline (the label maker, ch. 4.2) against the renderer's ground truth.
 
-    python bench/horizon_labels.py --data DIR [DIR ...] [--json] [--plot labels.png]
+    python -m bench.horizon_labels --data DIR [DIR ...] [--json] [--plot labels.png]
 
 Each DIR is a dataset written by ``python infer.py render-dataset``. For every dataset: the share of fits the
 pipeline rejects, errors of the accepted fits (pitch, roll, heading in degrees; horizon and water profile in
@@ -13,14 +13,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 FAIL_TILT_DEG, FAIL_HEADING_DEG, FAIL_PROFILE_PX = 0.5, 1.0, 2.0
 

@@ -1,6 +1,6 @@
 """HorizonFinder and HorizonSegmenter against the ground truth and against the classical labels (ch. 4.3).
 
-    python bench/horizon_networks.py --finder F.ckpt --segmenter S.ckpt --data DIR [--input-width 512]
+    python -m bench.horizon_networks --finder F.ckpt --segmenter S.ckpt --data DIR [--input-width 512]
                                      [--json] [--plot networks.png]
 
 DIR is a held-out dataset written by ``python infer.py render-dataset`` (or a DataModule's test set). Prints
@@ -16,12 +16,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import tempfile
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from core.errors import InputError
 
 
 def evaluate(finder: Path, segmenter: Path, data: Path, input_width: int = 512) -> dict[str, float]:
@@ -29,14 +27,13 @@ def evaluate(finder: Path, segmenter: Path, data: Path, input_width: int = 512) 
     from lightning.pytorch import Trainer
 
     from data.horizon.datamodule import HorizonDataModule
+    from models.checkpoint import load_system
     from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 
     metrics: dict[str, float] = {}
     for name, system, ckpt in (("finder", HorizonFinderSystem, finder),
                                ("segmenter", HorizonSegmenterSystem, segmenter)):
-        if not Path(ckpt).is_file():
-            raise SystemExit(f"bench/horizon_networks.py: error: checkpoint not found: {ckpt}")
-        model = system.load_from_checkpoint(str(ckpt), map_location="cpu", weights_only=False)
+        model = load_system(system, ckpt)
         datamodule = HorizonDataModule(root=str(data), test_root=str(data), task=name, input_width=input_width,
                                        create=False, val_fraction=0.5)
         trainer = Trainer(accelerator="cpu", logger=False, enable_progress_bar=False, enable_model_summary=False)
@@ -54,13 +51,13 @@ def evaluate_chain(finder: Path, segmenter: Path, data: Path, input_width: int =
     import numpy as np
     import torch
 
+    from core.cylinder import warp_panorama
     from data.horizon.datamodule import read_panorama, resize_panorama
     from data.horizon.dataset import read_split
-    from export.horizon_onnx import load_network
-    from models.horizon.cylinder import warp_panorama
+    from models.builders import horizon_finder, horizon_segmenter
     from models.horizon.finder import sincos_to_angles
 
-    find, segment = load_network("finder", finder), load_network("segmenter", segmenter)
+    find, segment = horizon_finder(ckpt=finder), horizon_segmenter(ckpt=segmenter)
     truth = read_split(data, "truth")
     focal = input_width / (2 * np.pi)
     errors = []
@@ -126,8 +123,11 @@ def main() -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", type=Path, help="bar chart of the failure rates (PNG)")
     args = parser.parse_args()
-    metrics = evaluate(args.finder, args.segmenter, args.data, args.input_width)
-    metrics.update(evaluate_chain(args.finder, args.segmenter, args.data, args.input_width))
+    try:
+        metrics = evaluate(args.finder, args.segmenter, args.data, args.input_width)
+        metrics.update(evaluate_chain(args.finder, args.segmenter, args.data, args.input_width))
+    except InputError as err:
+        raise SystemExit(f"bench/horizon_networks.py: error: {err}") from err
     if args.json:
         print(json.dumps(metrics))
     else:

@@ -1,6 +1,6 @@
 """Benchmark of horizon-profile localisation with the 1-D MOSSE filter bank (thesis ch. 4.4).
 
-    python bench/localization.py [--dem DEM.tif --sea-level M] [--spacing 5] [--json] [--plot FILE.png]
+    python -m bench.localization [--dem DEM.tif --sea-level M] [--spacing 5] [--json] [--plot FILE.png]
 
 A boat trajectory of >= 100 poses (not on the grid) over a synthetic archipelago (or any GeoTIFF/.npz DEM,
 flooded at ``--sea-level``); a filter bank over the trajectory's area; then per input kind:
@@ -26,18 +26,16 @@ import sys
 import time
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import numpy as np
 import torch
 
-from data.errors import InputError
+from core.cylinder import column_azimuths, interp_profile
+from core.errors import InputError
+from core.raycast import VirtualHorizon, virtual_horizon
 from data.horizon.bank_io import FilterBank
 from data.horizon.metric_dem import load_metric_dem
 from data.world.dem import Dem, generate_archipelago
-from data.world.raycast import VirtualHorizon, virtual_horizon
-from models.horizon.cylinder import column_azimuths, interp_profile
+from models.builders import demo_horizon_checkpoint
 from models.horizon.filter_bank import BankSettings, build_filter_bank, profile_normalize
 from models.horizon.localizer import heading_error_deg, locate, resample_profile
 from models.horizon.matching import band_bins, band_psr
@@ -122,17 +120,11 @@ def render(dem: Dem, poses: np.ndarray, width: int, height: int, max_range: floa
     return torch.cat(images)
 
 
-def find_checkpoint(which: str) -> Path | None:
-    """Newest ``last.ckpt`` of the demo training of a horizon network, if any."""
-    found = sorted(Path("outputs/horizon").glob(f"{which}_demo/**/last.ckpt"), key=lambda p: p.stat().st_mtime)
-    return found[-1] if found else None
-
-
 def network_inputs(images: torch.Tensor, bins: int, finder: Path, segmenter: Path) -> torch.Tensor:
-    from export.horizon_onnx import load_network
+    from models.builders import horizon_finder, horizon_segmenter
     from models.horizon.localizer import network_profiles
 
-    f, s = load_network("finder", finder), load_network("segmenter", segmenter)
+    f, s = horizon_finder(ckpt=finder), horizon_segmenter(ckpt=segmenter)
     out = [network_profiles(images[i : i + 8], f, s, bins)[0] for i in range(0, len(images), 8)]
     return torch.cat(out)
 
@@ -237,8 +229,8 @@ def run(dem: Dem | None = None, spacing: float = 5.0, count: int = 100, bins: in
             images = render(dem, poses, width, height, max_range, seed) if images is None else images
             profile = resample_profile(classical_profile(images, torch.from_numpy(poses[:, 2]))[0], bins)
         else:
-            finder = finder or find_checkpoint("finder")
-            segmenter = segmenter or find_checkpoint("segmenter")
+            finder = finder or demo_horizon_checkpoint("finder")
+            segmenter = segmenter or demo_horizon_checkpoint("segmenter")
             if finder is None or segmenter is None:
                 report[kind] = {"pending": "no trained HorizonFinder/HorizonSegmenter checkpoints (train "
                                            "configs/demo/horizon_*.yaml or pass --finder/--segmenter)"}

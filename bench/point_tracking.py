@@ -16,7 +16,7 @@ first two frames, untimed (warm-up), then ``--repeats`` times (default 3) with t
 best time counts. ``--compile`` adds ``ccot_compiled``: ``ccot`` with its per-frame step
 through ``torch.compile`` (compiled during the warm-up).
 
-    python bench/point_tracking.py --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
+    python -m bench.point_tracking --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
         --plot docs/figures/point_tracking.png
 """
 
@@ -32,13 +32,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from data.flow import read_sintel_sequence, synthetic_sequence, tracks_from_flow  # noqa: E402
-from models.tracking import PointTracker, good_features_to_track  # noqa: E402
-from models.tracking.klt import klt_track  # noqa: E402
-from models.tracking.run import cpu_threads  # noqa: E402
+from core.threads import cpu_threads
+from data.flow import read_sintel_sequence, synthetic_sequence, tracks_from_flow
+from models.tracking import PointTracker, good_features_to_track
+from models.tracking.klt import klt_track
 
 METHODS = ("ccot", "ccot_ff", "mosse", "klt")
 COMPILED = "ccot_compiled"  # ccot with its step through torch.compile (--compile)

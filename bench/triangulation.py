@@ -1,6 +1,6 @@
 """Triangulation benchmark: every method side by side on the same synthetic cube (thesis 2.5, figure 2.2).
 
-    python bench/triangulation.py [--points N] [--noise SIGMA] [--device cpu|cuda] [--json] [--plot FILE.png]
+    python -m bench.triangulation [--points N] [--noise SIGMA] [--device cpu|cuda] [--json] [--plot FILE.png]
 
 Points in the cube [-1, 1]^3, three cameras on a radius-5 circle at -0.3/0/+0.3 rad (f = 1000 px), N(0, sigma)
 pixel noise. Two-view methods use the first two views. Prints one JSON object
@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -23,19 +22,17 @@ import cv2
 import numpy as np
 import torch
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from data.sfm.bundler import read_bundler  # noqa: E402
-from data.sfm.evaluation import evaluate_reconstruction  # noqa: E402
-from data.sfm.synthetic import SyntheticScene, synthetic_cube_scene  # noqa: E402
-from models.geometry import (  # noqa: E402
+from core.threads import set_cpu_threads
+from data.sfm.bundler import read_bundler
+from data.sfm.synthetic import SyntheticScene, synthetic_cube_scene
+from models.geometry import (
     fundamental_from_cameras,
     reprojection_cost,
     triangulate_dogleg,
     triangulate_midpoint,
     triangulate_polynomial,
 )
+from models.geometry.evaluation import evaluate_reconstruction
 
 ALL_METHODS = (
     "dogleg", "dogleg_compiled", "midpoint3", "midpoint2", "polynomial", "kornia_dlt", "opencv_dlt", "opencv_optimal",
@@ -213,8 +210,7 @@ def format_table(report: dict) -> str:
 
 def demo() -> None:
     """Small side-by-side run for ``make demo``: the synthetic cube, then the real reconstruction when present."""
-    torch.set_num_threads(1)
-    cv2.setNumThreads(1)
+    set_cpu_threads(1)
     report, _ = run(points=20_000, repeats=2, pycolmap_points=2000, methods=DEFAULT_METHODS)
     print(f"Triangulation, synthetic cube: {report['config']['points']} points, sigma = 1 px")
     print(format_table(report))
@@ -251,8 +247,7 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--points must be positive")
     if args.device.startswith("cuda") and not torch.cuda.is_available():
         parser.error("--device cuda: no CUDA device is available")
-    torch.set_num_threads(args.threads)
-    cv2.setNumThreads(args.threads)
+    set_cpu_threads(args.threads)
     methods = tuple(args.methods) + (("dogleg_compiled",) if args.compile else ())
     report, errors = run(args.points, args.noise, args.device, args.dtype, args.seed, args.repeats,
                          args.pycolmap_points, methods)

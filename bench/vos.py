@@ -1,6 +1,6 @@
 """FRTM video object segmentation benchmark: the full method against its baselines, with DAVIS J&F.
 
-    python bench/vos.py [--ckpt CKPT] [--davis ROOT --split NAME --resolution 240p] [--synthetic]
+    python -m bench.vos [--ckpt CKPT] [--davis ROOT --split NAME --resolution 240p] [--synthetic]
                         [--speed [--speed-config YAML ...]] [--max-frames N] [--json] [--plot FILE.png]
 
 Methods: ``frtm`` (target model + decoder), ``target_model_only`` (the upsampled target-model score
@@ -27,28 +27,17 @@ from pathlib import Path
 
 import torch
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from data.errors import InputError  # noqa: E402
-from data.vos.datamodule import synthetic_videos  # noqa: E402
-from data.vos.davis import davis_sequences  # noqa: E402
-from models.vos.lit import FRTMSegmentation  # noqa: E402
-from models.vos.metrics import evaluate_sequence, summarize  # noqa: E402
-from models.vos.target_features import FEATURE_NORMS  # noqa: E402
-from models.vos.tracker import COMPONENTS  # noqa: E402
+from core.errors import InputError
+from core.threads import set_cpu_threads
+from data.vos.davis import davis_sequences
+from models.builders import frtm_system
+from models.vos.inference import checkpoint_test_videos, synthetic_test_settings
+from models.vos.lit import FRTMSegmentation
+from models.vos.metrics import evaluate_sequence, summarize
+from models.vos.target_features import FEATURE_NORMS
+from models.vos.tracker import COMPONENTS
 
 METHODS = ("frtm", "target_model_only", "first_frame_copy")
-
-
-def load_model(ckpt: str | None, **defaults) -> FRTMSegmentation:
-    """The checkpoint's system in eval mode, or an untrained one built from ``defaults``."""
-    if ckpt is None:
-        torch.manual_seed(0)
-        return FRTMSegmentation(**defaults).eval()
-    if not Path(ckpt).is_file():
-        raise InputError(f"checkpoint {ckpt} does not exist")
-    return FRTMSegmentation.load_from_checkpoint(ckpt, map_location="cpu", weights_only=False).eval()
 
 
 def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, torch.Tensor, torch.Tensor]]) -> dict:
@@ -110,39 +99,6 @@ def speed(models: dict[str, FRTMSegmentation], n_frames: int = 24, repeats: int 
     return out
 
 
-def model_from_config(path: str) -> FRTMSegmentation:
-    """The (untrained) FRTMSegmentation of a train.py YAML config: same backbone, decoder and tracker settings,
-    so its speed is the trained model's."""
-    import yaml
-
-    if not Path(path).is_file():
-        raise InputError(f"config {path} does not exist")
-    model = yaml.safe_load(Path(path).read_text()).get("model", {})
-    if not str(model.get("class_path", "")).endswith("FRTMSegmentation"):
-        raise InputError(f"config {path} does not configure an FRTMSegmentation model")
-    torch.manual_seed(0)
-    return FRTMSegmentation(**model.get("init_args", {})).eval()
-
-
-SYNTHETIC_DEFAULTS = {"height": 96, "width": 160, "objects": 2, "distractors": 1, "object_scale": (0.15, 0.3)}
-_DATAMODULE_KEYS = {"height": "height", "width": "width", "objects": "eval_objects", "distractors": "n_distractors",
-                    "object_scale": "object_scale"}
-
-
-def synthetic_settings(args: argparse.Namespace) -> dict:
-    """Video settings for ``--synthetic``: explicit options, else the checkpoint's data module, else defaults."""
-    stored = {}
-    if args.ckpt:
-        hp = torch.load(args.ckpt, map_location="cpu", weights_only=False).get("datamodule_hyper_parameters", {})
-        stored = {k: hp[v] for k, v in _DATAMODULE_KEYS.items() if v in hp}
-    out = {}
-    for k, default in SYNTHETIC_DEFAULTS.items():
-        given = getattr(args, k)
-        out[k] = given if given is not None else stored.get(k, default)
-    out["object_scale"] = tuple(float(v) for v in out["object_scale"])
-    return out
-
-
 def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Tensor, torch.Tensor]]]:
     if args.davis:
         videos = []
@@ -151,12 +107,12 @@ def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Te
             frames, labels = seq.load(args.max_frames)
             videos.append((seq.name, frames, labels))
         return f"davis:{Path(args.davis).name}/{args.split}@{args.resolution}", videos
-    v = synthetic_settings(args)
-    videos = synthetic_videos("test", args.videos, 0, n_frames=args.max_frames or 20, height=v["height"],
-                              width=v["width"], n_objects=v["objects"], n_distractors=v["distractors"],
-                              object_scale=v["object_scale"])
-    name = (f"synthetic:{args.videos}x{v['height']}x{v['width']} objects {v['objects']} distractors "
-            f"{v['distractors']} object_scale {list(v['object_scale'])}")
+    given = {"height": args.height, "width": args.width, "n_objects": args.objects,
+             "n_distractors": args.distractors, "object_scale": args.object_scale}
+    v = synthetic_test_settings(args.ckpt, **given)
+    videos = checkpoint_test_videos(args.ckpt, args.videos, args.max_frames or 20, **given)
+    name = (f"synthetic:{args.videos}x{v['height']}x{v['width']} objects {v['n_objects']} distractors "
+            f"{v['n_distractors']} object_scale {list(v['object_scale'])}")
     return name, videos
 
 
@@ -180,8 +136,10 @@ def run(args: argparse.Namespace) -> dict:
         raise InputError(f"--methods {args.methods!r} names a method that is not one of {', '.join(METHODS)}")
     tracker = parse_tracker(args.tracker)
     weights = None if args.weights in (None, "none") else args.weights
-    model = load_model(args.ckpt, backbone=args.backbone, weights=weights, feature_layer=args.feature_layer,
-                       feature_norm=args.feature_norm, feature_scale=args.feature_scale, tracker=tracker)
+    untrained = {} if args.ckpt else {"backbone": args.backbone, "weights": weights, "tracker": tracker,
+                                      "feature_layer": args.feature_layer, "feature_norm": args.feature_norm,
+                                      "feature_scale": args.feature_scale}
+    model = frtm_system(args.ckpt, **untrained)
     if args.ckpt and tracker:  # the checkpoint's tracker settings, overridden
         model.hparams.tracker = {**(model.hparams.tracker or {}), **tracker}
     h = model.hparams
@@ -194,7 +152,7 @@ def run(args: argparse.Namespace) -> dict:
         for method in methods:
             result["methods"][method] = run_method(model, method, videos)
     if args.speed:
-        models = {"model": model, **{Path(c).stem: model_from_config(c) for c in args.speed_config or []}}
+        models = {"model": model, **{Path(c).stem: frtm_system(config=c) for c in args.speed_config or []}}
         result["speed"] = speed(models, args.speed_frames)
     return result
 
@@ -305,7 +263,7 @@ def demo(train_seconds: float = 120.0, height: int = 96, width: int = 160) -> No
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     if args.threads:
-        torch.set_num_threads(args.threads)
+        set_cpu_threads(args.threads)
     try:
         result = run(args)
     except InputError as err:

@@ -18,39 +18,19 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
 import torch
 from torch import nn
 
-from data.errors import InputError
-from export.onnx import export_onnx, onnx_session, run_onnx
-from models.horizon.cylinder import LevelPanorama
-from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
-from models.horizon.segmenter import PanoramaSegmenter
+from core.errors import InputError
+from export.onnx import export_onnx
+from models.builders import horizon_network
+from models.onnx_graph import OnnxGraph
 
 SPECS = {
     "finder": (("image",), ("sincos",)),
     "segmenter": (("image",), ("profiles",)),
     "level": (("image", "pitch", "roll"), ("level",)),
 }
-
-
-def load_network(which: str, ckpt: str | Path | None = None, **network_args) -> nn.Module:
-    """The network of a checkpoint (or a fresh one built from ``network_args``) in eval mode; the segmenter is
-    wrapped in ``PanoramaSegmenter`` (whole panoramas in, tan elevation out)."""
-    if which == "level":
-        return LevelPanorama().eval()
-    systems = {"finder": HorizonFinderSystem, "segmenter": HorizonSegmenterSystem}
-    if which not in systems:
-        raise InputError(f"--which must be one of {', '.join(SPECS)}, got {which!r}")
-    if ckpt is not None:
-        if not Path(ckpt).is_file():
-            raise InputError(f"checkpoint not found: {ckpt}")
-        system = systems[which].load_from_checkpoint(str(ckpt), map_location="cpu", weights_only=False)
-    else:
-        system = systems[which](**network_args)
-    net = PanoramaSegmenter(system.net) if which == "segmenter" else system.net
-    return net.eval()
 
 
 def example_inputs(which: str, height: int, width: int, batch: int = 2, seed: int = 0) -> tuple[torch.Tensor, ...]:
@@ -63,7 +43,7 @@ def example_inputs(which: str, height: int, width: int, batch: int = 2, seed: in
 
 
 def export_horizon(which: str, model: nn.Module, path: str | Path, height: int = 64, width: int = 512) -> Path:
-    """Export ``model`` (from ``load_network``) with dynamic batch and width; returns the path."""
+    """Export ``model`` (``models.builders.horizon_network``) with dynamic batch and width; returns the path."""
     stride = 1 if which == "level" else model.backbone.strides[model.stage]
     if width % stride or height % stride:
         raise InputError(f"height and width must be multiples of the backbone stride {stride}, got {height}x{width}")
@@ -79,8 +59,8 @@ def parity(which: str, model: nn.Module, path: str | Path, inputs: tuple[torch.T
     """Largest |onnxruntime - PyTorch| of the exported graph on ``inputs``."""
     with torch.no_grad():
         expected = model(*inputs)
-    (actual,) = run_onnx(onnx_session(path), *inputs)
-    return float(np.abs(actual - expected.numpy()).max())
+    actual = OnnxGraph(path)(*inputs)
+    return float((actual - expected).abs().max())
 
 
 def main() -> None:
@@ -92,7 +72,7 @@ def main() -> None:
     parser.add_argument("--width", type=int, default=512)
     args = parser.parse_args()
     try:
-        model = load_network(args.which, args.ckpt)
+        model = horizon_network(args.which, args.ckpt)
         path = export_horizon(args.which, model, args.out, args.height, args.width)
         error = parity(args.which, model, path, example_inputs(args.which, args.height, args.width, seed=1))
     except InputError as err:

@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from data.errors import InputError
-from export.onnx import export_onnx, onnx_session, run_onnx
+from core.errors import InputError
+from export.onnx import export_onnx
 from models.horizon.matching import BandPsr
+from models.onnx_graph import onnx_session, run_onnx
 
 
 def example_inputs(bins: int, frequencies: int, locations: int = 64, batch: int = 2, seed: int = 0):

@@ -1,4 +1,4 @@
-"""ONNX export with the dynamo exporter, model checking, and onnxruntime parity checks."""
+"""ONNX export with the dynamo exporter and model checking (``models.onnx_graph`` runs the graphs)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import onnx
-import onnxruntime as ort
 import torch
 from torch import nn
 
@@ -51,21 +49,3 @@ def export_onnx(
     finally:
         tmp.unlink(missing_ok=True)
     return path
-
-
-def onnx_session(path: str | Path, threads: int | None = None) -> ort.InferenceSession:
-    """CPU onnxruntime session with sequential execution and ``threads`` intra-op threads (default: ORT's)."""
-    options = ort.SessionOptions()
-    options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    options.inter_op_num_threads = 1
-    if threads:
-        options.intra_op_num_threads = threads
-    return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-
-
-def run_onnx(session: ort.InferenceSession, *inputs: torch.Tensor) -> list[np.ndarray]:
-    """Run ``session`` on tensors given in the graph's input order; returns the outputs as numpy arrays."""
-    names = [i.name for i in session.get_inputs()]
-    if len(names) != len(inputs):
-        raise ValueError(f"the ONNX graph takes {len(names)} inputs ({', '.join(names)}), got {len(inputs)}")
-    return session.run(None, {n: t.detach().cpu().numpy() for n, t in zip(names, inputs, strict=True)})

@@ -1,5 +1,7 @@
-"""ONNX export of FRTM and an onnxruntime tracker (REFERENCE.md 1.2, 8: per-component graphs with the state
-outside the graph).
+"""ONNX export of FRTM (thesis ch. 5): one graph per component, with the tracker's state (filters, memory, CG
+state) outside the graphs, run by ``models.vos.onnx_tracker.OnnxFRTMTracker``.
+
+    python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check-videos N]
 
 Graphs (dynamo exporter, opset 20; H, W, the number of objects N, samples K and memory slots M dynamic):
 
@@ -11,27 +13,25 @@ Graphs (dynamo exporter, opset 20; H, W, the number of objects N, samples K and 
 - ``frtm_update.onnx``: one W_f optimizer update over M memory slots with the CG state in and out.
 
 The per-object graphs (init, insert, update) take one object (B = 1, grouped convolutions need a static group
-count); ``OnnxFRTMTracker`` loops over objects. ``frtm_onnx.json`` stores the host-side tracker settings.
+count); ``OnnxFRTMTracker`` loops over objects. ``frtm_onnx.json`` stores the tracker settings (``FRTMSettings``)
+and the target-model input channels.
 """
 
 from __future__ import annotations
 
 import json
-from collections import defaultdict
 from pathlib import Path
 
 import torch
 from torch import nn
 from torch.export import Dim
 
-from data.errors import InputError
-from export.onnx import export_onnx, onnx_session, run_onnx
+from core.errors import InputError
+from export.onnx import export_onnx
 from models.vos.memory import Memory
+from models.vos.onnx_tracker import SETTINGS_FILE, OnnxFRTMTracker
 from models.vos.optimizer import SteepestDescent
-from models.vos.target_model import target_model_init
 from models.vos.tracker import FRTMTracker, frame_memory_insert
-
-GRAPHS = ("frame", "features", "init", "insert", "update")
 
 
 def apply_filter_per_object(z: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
@@ -85,8 +85,8 @@ class InitGraph(nn.Module):
     def __init__(self, tracker: FRTMTracker) -> None:
         super().__init__()
         self.optimizer = tracker.init_optimizer
-        self.pixel_weighting = tracker.pixel_weighting
-        self.dtype = getattr(torch, tracker.optimizer_dtype)
+        self.pixel_weighting = tracker.settings.pixel_weighting
+        self.dtype = getattr(torch, tracker.settings.optimizer_dtype)
 
     def forward(self, x, labels, pixel_weights, gamma, wp, wf):
         dt, keep = self.dtype, x.dtype
@@ -98,8 +98,9 @@ class InitGraph(nn.Module):
 class InsertGraph(nn.Module):
     def __init__(self, tracker: FRTMTracker) -> None:
         super().__init__()
-        self.t = {"lr": tracker.learning_rate, "pixel_weighting": tracker.pixel_weighting,
-                  "fg_target": tracker.fg_target, "min_pixels": tracker.min_update_pixels}
+        s = tracker.settings
+        self.t = {"lr": s.learning_rate, "pixel_weighting": s.pixel_weighting, "fg_target": s.fg_target,
+                  "min_pixels": s.min_update_pixels}
 
     def forward(self, features, labels, pixel_weights, weights, newest, z, label):
         mem = frame_memory_insert(Memory(features, labels, pixel_weights, weights, newest), z, label, **self.t)
@@ -112,7 +113,7 @@ class UpdateGraph(nn.Module):
     def __init__(self, tracker: FRTMTracker) -> None:
         super().__init__()
         self.optimizer = tracker.update_optimizer
-        self.dtype = getattr(torch, tracker.optimizer_dtype)
+        self.dtype = getattr(torch, tracker.settings.optimizer_dtype)
 
     def forward(self, features, labels, pixel_weights, weights, wf, p, rho, r_prev):
         dt, keep = self.dtype, wf.dtype
@@ -124,31 +125,17 @@ class UpdateGraph(nn.Module):
         return wf.to(keep), p[0].to(keep), rho.to(keep), r_prev[0].to(keep)
 
 
-def _settings(tracker: FRTMTracker) -> dict:
-    return {
-        "feature_layer": tracker.feature_layer, "feature_norm": tracker.feature_norm,
-        "feature_scale": tracker.feature_scale, "channels": tracker.channels,
-        "kernel_size": tracker.kernel_size,
-        "num_aug": tracker.num_aug, "memory_size": tracker.memory_size, "learning_rate": tracker.learning_rate,
-        "update_every": tracker.update_every, "pixel_weighting": tracker.pixel_weighting,
-        "fg_target": tracker.fg_target, "min_update_pixels": tracker.min_update_pixels,
-        "label_stride": tracker.label_stride, "optimizer_dtype": tracker.optimizer_dtype,
-        "use_decoder": tracker.use_decoder, "seed": tracker.seed,
-        "in_channels": tracker.target_input.channels,
-    }
-
-
 @torch.no_grad()
 def export_frtm(tracker: FRTMTracker, out_dir: str | Path, height: int = 96, width: int = 160) -> dict[str, Path]:
     """Export the five FRTM graphs of ``tracker`` into ``out_dir`` (example size ``height`` x ``width``)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     tracker = tracker.eval()
-    c, k, d = tracker.channels, tracker.kernel_size, tracker.target_input.channels
+    c, k, d = tracker.settings.channels, tracker.settings.kernel_size, tracker.target_input.channels
     stride = tracker.target_input.stride
     h, w = -(-height // stride), -(-width // stride)
     lh, lw = tracker._label_size((height, width))
-    n_obj, n_aug, n_mem = 2, max(tracker.num_aug, 2), 3
+    n_obj, n_aug, n_mem = 2, max(tracker.settings.num_aug, 2), 3
     big_h, big_w = Dim("H", min=2 * stride, max=4096), Dim("W", min=2 * stride, max=4096)
     fh, fw, lbh, lbw = Dim("h", min=2), Dim("w", min=2), Dim("Hl", min=2), Dim("Wl", min=2)
     nd, kd, md = Dim("N", min=1, max=64), Dim("K", min=2, max=256), Dim("M", min=2, max=4096)
@@ -187,68 +174,10 @@ def export_frtm(tracker: FRTMTracker, out_dir: str | Path, height: int = 96, wid
         ["wf_out", "p_out", "rho_out", "r_prev_out"],
         dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md}, None,
                         None, None, None))
-    (out / "frtm_onnx.json").write_text(json.dumps(_settings(tracker), indent=2))
+    settings = {"settings": tracker.settings.to_dict(), "in_channels": d}
+    (out / SETTINGS_FILE).write_text(json.dumps(settings, indent=2))
     return paths
 
-
-class OnnxFRTMTracker(FRTMTracker):
-    """``FRTMTracker`` whose computational hooks run the exported graphs in onnxruntime (CPU).
-
-    Host-side work stays in PyTorch/OpenCV: first-frame augmentation, memory initialisation, merging.
-    """
-
-    def __init__(self, onnx_dir: str | Path, threads: int | None = None) -> None:
-        d = Path(onnx_dir)
-        cfg_path = d / "frtm_onnx.json"
-        missing = [f"frtm_{g}.onnx" for g in GRAPHS if not (d / f"frtm_{g}.onnx").is_file()]
-        if not cfg_path.is_file() or missing:
-            raise InputError(f"{d} is not an FRTM ONNX export (missing {missing or ['frtm_onnx.json']})")
-        cfg = json.loads(cfg_path.read_text())
-        in_channels = cfg.pop("in_channels")
-        nn.Module.__init__(self)
-        for key, value in cfg.items():
-            setattr(self, key, value)
-        self.in_channels = in_channels
-        self.sessions = {g: onnx_session(d / f"frtm_{g}.onnx", threads) for g in GRAPHS}
-        self.timings = defaultdict(float)
-        self.reset()
-
-    def target_features(self, images: torch.Tensor) -> torch.Tensor:
-        return torch.from_numpy(run_onnx(self.sessions["features"], images.float())[0])
-
-    def fit_target_models(self, x, y, v, gamma):
-        wp0, wf0 = target_model_init(1, x.shape[2], self.channels, self.kernel_size, self.seed)
-        out = [run_onnx(self.sessions["init"], x[i : i + 1], y[i : i + 1], v[i : i + 1], gamma[i : i + 1], wp0, wf0)
-               for i in range(x.shape[0])]
-        return (torch.cat([torch.from_numpy(o[0]) for o in out]), torch.cat([torch.from_numpy(o[1]) for o in out]))
-
-    def segment_frame(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        start = self._tic(image.device)
-        logits, z = run_onnx(self.sessions["frame"], image[None].float(), self.wp, self.wf)
-        self._toc("frame", start, image.device)
-        return torch.from_numpy(logits), torch.from_numpy(z)
-
-    def insert_samples(self, z: torch.Tensor, y: torch.Tensor) -> None:
-        mem = self.memory
-        rows = []
-        for i in range(z.shape[0]):
-            out = run_onnx(self.sessions["insert"], *(t[i : i + 1] for t in mem), z[i : i + 1], y[i : i + 1])
-            rows.append([torch.from_numpy(o) for o in out])
-        self.memory = Memory(*(torch.cat(col) for col in zip(*rows, strict=True)))
-
-    def optimize_filters(self) -> None:
-        mem = self.memory
-        n = max(2, int((mem.weights > 0).sum(1).max()))
-        if self.cg_state is None:
-            self.cg_state = (torch.zeros_like(self.wf), torch.ones(self.wf.shape[0]), torch.zeros_like(self.wf))
-        p, rho, r_prev = self.cg_state
-        rows = []
-        for i in range(self.wf.shape[0]):
-            args = [t[i : i + 1, :n] for t in mem[:4]] + [self.wf[i : i + 1], p[i : i + 1], rho[i : i + 1],
-                                                         r_prev[i : i + 1]]
-            rows.append([torch.from_numpy(o) for o in run_onnx(self.sessions["update"], *args)])
-        wf, p, rho, r_prev = (torch.cat(col) for col in zip(*rows, strict=True))
-        self.wf, self.cg_state = wf, (p, rho, r_prev)
 
 def mask_parity(
     tracker: FRTMTracker, onnx_dir: str | Path, videos: list[tuple[str, torch.Tensor, torch.Tensor]]
@@ -282,28 +211,26 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--height", type=int, default=96, help="example frame height (the graphs accept any)")
     p.add_argument("--width", type=int, default=160, help="example frame width")
     p.add_argument("--check-videos", type=int, default=0,
-                   help="mask parity on this many held-out synthetic test videos (bench/vos.py's, checkpoint's data)")
+                   help="mask parity on this many held-out synthetic test videos (the checkpoint's data settings)")
     p.add_argument("--check-frames", type=int, default=20, help="frames per parity video")
     args = p.parse_args(argv)
-    from models.vos.inference import load_tracker
+    from models.builders import frtm_tracker
+    from models.vos.inference import checkpoint_test_videos
 
     try:
-        tracker = load_tracker(args.ckpt, None)
+        tracker = frtm_tracker(ckpt=args.ckpt)
         paths = export_frtm(tracker, args.out, args.height, args.width)
+        videos = checkpoint_test_videos(args.ckpt, args.check_videos, args.check_frames)
     except InputError as err:
         print(f"export.vos_onnx: error: {err}", file=sys.stderr)
         return 2
     for name, path in paths.items():
         print(f"{name:>9}: {path}")
-    if args.check_videos > 0:
-        from bench.vos import load_videos, parse_args
-
-        bench_args = ["--ckpt", args.ckpt, "--synthetic", "--videos", str(args.check_videos), "--max-frames",
-                      str(args.check_frames)]
-        dataset, videos = load_videos(parse_args(bench_args))
+    if videos:
         ious = torch.tensor(mask_parity(tracker, args.out, videos))
-        print(f"mask parity onnxruntime vs PyTorch on {dataset}: {len(ious)} frame-objects, IoU mean "
-              f"{ious.mean():.4f}, min {ious.min():.4f}, below 0.99: {int((ious < 0.99).sum())}")
+        print(f"mask parity onnxruntime vs PyTorch on {len(videos)} held-out synthetic videos: {len(ious)} "
+              f"frame-objects, IoU mean {ious.mean():.4f}, min {ious.min():.4f}, below 0.99: "
+              f"{int((ious < 0.99).sum())}")
     return 0
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from data.errors import InputError
+from core.errors import InputError
 
 FLO_MAGIC = 202021.25
 UNKNOWN_FLOW = 1e9

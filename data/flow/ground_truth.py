@@ -9,7 +9,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 def sample_bilinear(image: np.ndarray, points: np.ndarray) -> np.ndarray:

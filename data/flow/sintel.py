@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from data.errors import InputError
+from core.errors import InputError
 from data.flow.flo import read_flo
 
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 @dataclass

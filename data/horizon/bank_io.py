@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from data.world.dem import Dem
 
 BANK_FORMAT = "dcfvision-horizon-filter-bank"

@@ -26,9 +26,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from data.errors import InputError
-from data.world.raycast import VirtualHorizon, effective_radius
-from models.horizon.cylinder import (
+from core.cylinder import (
     column_azimuths,
     interp_profile,
     level_to_tilted,
@@ -36,6 +34,8 @@ from models.horizon.cylinder import (
     row_tangents,
     tangent_to_row,
 )
+from core.errors import InputError
+from core.raycast import VirtualHorizon, effective_radius
 
 
 @dataclass

@@ -28,10 +28,10 @@ import torch.nn.functional as F
 from lightning.pytorch import LightningDataModule
 from torch.utils.data import DataLoader, Dataset
 
-from data.errors import InputError
+from core.cylinder import warp_panorama
+from core.errors import InputError
 from data.horizon.dataset import DatasetSettings, read_split, write_dataset
 from data.world.dem import generate_archipelago
-from models.horizon.cylinder import warp_panorama
 
 
 def read_panorama(path: Path) -> torch.Tensor:
@@ -40,6 +40,17 @@ def read_panorama(path: Path) -> torch.Tensor:
     if image is None:
         raise InputError(f"panorama image missing or unreadable: {path}")
     return torch.from_numpy(np.ascontiguousarray(image[..., ::-1])).permute(2, 0, 1).float() / 255
+
+
+def read_full_panorama(path: Path, min_width: int = 64) -> torch.Tensor:
+    """(1, 3, H, W) panorama of ``path``, checked to look like a 360-degree cylinder (at least ``min_width`` x 16
+    px and at least twice as wide as high)."""
+    image = read_panorama(path)
+    height, width = image.shape[-2:]
+    if width < min_width or height < 16 or width < 2 * height:
+        raise InputError(f"{path}: a 360-degree panorama must be at least {min_width} x 16 px and at least twice "
+                         f"as wide as high, got {width} x {height}")
+    return image[None]
 
 
 def resize_panorama(image: torch.Tensor, width: int) -> torch.Tensor:

@@ -25,10 +25,10 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from data.errors import InputError
+from core.errors import InputError
+from core.raycast import VirtualHorizon
 from data.horizon.classical import ClassicalHorizon
 from data.world.dem import Dem, save_dem
-from data.world.raycast import VirtualHorizon
 from data.world.render import Appearance, render_panorama
 
 LABEL_KEYS = ("pitch", "roll", "heading", "horizon", "water", "horizon_rows", "water_rows", "quality", "ok")

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from data.errors import InputError
+from core.errors import InputError
 from data.world.dem import GEOTIFF_SUFFIXES, Dem, flood, load_dem
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from data.sfm.reconstruction import Reconstruction
 from data.sfm.tokens import TokenReader
 

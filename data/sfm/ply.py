@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from torch import Tensor
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 def write_ply(path: str | Path, points: Tensor, colors: Tensor | None = None) -> None:

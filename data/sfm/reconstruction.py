@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 @dataclass

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 class TokenReader:

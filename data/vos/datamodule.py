@@ -10,7 +10,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader, Dataset
 
-from data.errors import InputError
+from core.errors import InputError
 from data.vos.davis import davis_sequences
 from data.vos.io import VOSSequence
 from data.vos.synthetic import synthetic_video, synthetic_video_seeds

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from data.errors import InputError
+from core.errors import InputError
 from data.vos.io import VOSSequence, list_frames
 
 

@@ -10,7 +10,7 @@ import math
 import torch
 import torch.nn.functional as F
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 def _noise(gen: torch.Generator, size: tuple[int, int], octaves: int = 4) -> torch.Tensor:

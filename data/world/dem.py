@@ -19,7 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from data.errors import InputError
+from core.errors import InputError
 
 GEOTIFF_SUFFIXES = (".tif", ".tiff")
 

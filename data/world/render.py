@@ -1,8 +1,8 @@
 """Synthetic 360-degree panoramas of the archipelago with exact ground truth (stand-in for the ch. 4 videos).
 
 ``render_panorama`` draws, for camera poses (x, y, height, heading, pitch, roll), a cylindrical panorama (geometry
-in ``models.horizon.cylinder``): sky with a vertical gradient and clouds, shaded textured land (forest and rock)
-between the virtual horizon and water profiles of ``data.world.raycast``, a textured sea with waves, distance
+in ``core.cylinder``): sky with a vertical gradient and clouds, shaded textured land (forest and rock)
+between the virtual horizon and water profiles of ``core.raycast``, a textured sea with waves, distance
 haze, sun glare with glitter on the water, blur, exposure changes and pixel noise. The sky/land and land/sea
 boundaries are anti-aliased analytically (coverage of each pixel), so edges are exact to a fraction of a pixel.
 
@@ -19,9 +19,7 @@ from dataclasses import dataclass, fields
 import kornia
 import torch
 
-from data.errors import InputError
-from data.world.raycast import VirtualHorizon, effective_radius
-from models.horizon.cylinder import (
+from core.cylinder import (
     column_azimuths,
     interp_profile,
     panorama_focal,
@@ -29,6 +27,8 @@ from models.horizon.cylinder import (
     tangent_to_row,
     tilted_to_level,
 )
+from core.errors import InputError
+from core.raycast import VirtualHorizon, effective_radius
 
 _SKY_HORIZON = (0.80, 0.85, 0.90)
 _SKY_ZENITH = (0.28, 0.48, 0.80)

@@ -19,7 +19,7 @@ import torch
 from torch import nn
 from torchvision.ops import Conv2dNormActivation
 
-from data.errors import InputError
+from core.errors import InputError
 from models.backbones.base import STAGES, STRIDES, Backbone, check_stages
 
 # Per stage: kernel, stride, expansion, output channels, repeats (EfficientNet-B0 = Lite0).

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from data.errors import InputError
+from core.errors import InputError
 from models.backbones.base import STAGES, Backbone
 from models.backbones.efficientnet_lite import VARIANTS, EfficientNetLiteBackbone
 from models.backbones.resnet import RESNETS, ResNetBackbone

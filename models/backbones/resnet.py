@@ -12,7 +12,7 @@ import torch
 import torchvision
 from torch import nn
 
-from data.errors import InputError
+from core.errors import InputError
 from models.backbones.base import STAGES, STRIDES, Backbone, check_stages
 
 _IMAGENET_MEAN = (0.485, 0.456, 0.406)

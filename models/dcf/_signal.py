@@ -5,19 +5,17 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+from core.checks import check_tensor
+from core.errors import InputError
+
 
 def check_signal(x: Tensor, ndim: int, name: str) -> None:
-    """Raise ValueError unless ``x`` is a real floating tensor with at least ``ndim`` signal axes."""
+    """Raise ``InputError`` unless ``x`` is a real floating tensor with at least ``ndim`` non-empty signal axes."""
     if ndim not in (1, 2):
-        raise ValueError(f"ndim must be 1 or 2, got {ndim}")
-    if not isinstance(x, Tensor):
-        raise ValueError(f"{name} must be a torch.Tensor, got {type(x).__name__}")
-    if x.dim() < ndim:
-        raise ValueError(f"{name} needs at least {ndim} signal axes, got shape {tuple(x.shape)}")
-    if not x.is_floating_point():
-        raise ValueError(f"{name} must be a real floating tensor, got {x.dtype}")
+        raise InputError(f"ndim must be 1 or 2, got {ndim}")
+    check_tensor(x, name, min_ndim=ndim, floating=True)
     if any(n < 1 for n in x.shape[-ndim:]):
-        raise ValueError(f"{name} has an empty signal axis: shape {tuple(x.shape)}")
+        raise InputError(f"{name} has an empty signal axis: shape {tuple(x.shape)}")
 
 
 def signal_dims(ndim: int) -> tuple[int, ...]:

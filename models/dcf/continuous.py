@@ -18,6 +18,7 @@ import math
 import torch
 from torch import Tensor, nn
 
+from core.errors import InputError
 from models.dcf._signal import check_signal, full_frequencies, half_frequencies, signal_dims, wrap_index
 from models.dcf.peak import _unravel
 from models.dcf.preprocess import dcf_preprocess
@@ -62,7 +63,7 @@ def _frequency_grid(size: tuple[int, ...], device, dtype) -> list[Tensor]:
 
 def _check_odd(size: tuple[int, ...]) -> None:
     if any(n % 2 == 0 for n in size):
-        raise ValueError(f"the continuous filter needs odd signal sizes, got {size}")
+        raise InputError(f"the continuous filter needs odd signal sizes, got {size}")
 
 
 def ccot_sample(x: Tensor, ndim: int = 2) -> Tensor:
@@ -90,7 +91,7 @@ def continuous_label(size: tuple[int, ...], sigma: float, *, device=None, dtype=
     ``y^[k] = prod_axes sqrt(2 pi) sigma / N exp(-2 (pi sigma k / N)^2)``, rfft layout ``(*K)``, real.
     """
     if sigma <= 0:
-        raise ValueError(f"sigma must be positive, got {sigma}")
+        raise InputError(f"sigma must be positive, got {sigma}")
     label = torch.ones((), device=device, dtype=dtype)
     for k, n in zip(_frequency_grid(size, device, dtype), size, strict=True):
         label = label * (math.sqrt(2 * math.pi) * sigma / n) * torch.exp(-2 * (math.pi * sigma * k / n) ** 2)
@@ -104,7 +105,7 @@ def exponential_forgetting_weights(n: int, eta: float, *, device=None, dtype=tor
     ``1 - eta``, so the weights sum to 1: ``[(1-eta)^(n-1), eta (1-eta)^(n-2), ..., eta]``.
     """
     if n < 1 or not 0 < eta <= 1:
-        raise ValueError(f"need n >= 1 and 0 < eta <= 1, got n={n}, eta={eta}")
+        raise InputError(f"need n >= 1 and 0 < eta <= 1, got n={n}, eta={eta}")
     age = torch.arange(n - 1, -1, -1, device=device, dtype=dtype)
     weights = eta * (1 - eta) ** age
     weights[0] = (1 - eta) ** (n - 1)
@@ -123,7 +124,7 @@ def ccot_train(xhat: Tensor, yhat: Tensor, weights: Tensor, ndim: int = 2) -> tu
         |X^_j|^2``.
     """
     if weights.shape[-1] != xhat.shape[-(ndim + 1)]:
-        raise ValueError(
+        raise InputError(
             f"weights {tuple(weights.shape)} do not match the sample axis of {tuple(xhat.shape)}"
         )
     alpha = weights.to(xhat.real.dtype).reshape(*weights.shape, *([1] * ndim))
@@ -145,7 +146,7 @@ def ccot_update(
 def ccot_filter(A: Tensor, B: Tensor, ndim: int = 2, beta2: float = 0.0, beta2_rel: float = 0.0) -> Tensor:
     """Filter ``F = A / (B + beta^2)`` with ``beta^2 = beta2 + beta2_rel * mean(B)`` per filter (eq. 3.8)."""
     if beta2 < 0 or beta2_rel < 0 or (beta2 == 0 and beta2_rel == 0 and bool((B <= 0).any())):
-        raise ValueError("regularisation must be non-negative and positive where B has zeros")
+        raise InputError("regularisation must be non-negative and positive where B has zeros")
     return A / (B + beta2 + beta2_rel * B.mean(dim=signal_dims(ndim), keepdim=True))
 
 

@@ -27,6 +27,7 @@ import math
 import torch
 from torch import Tensor, nn
 
+from core.errors import InputError
 from models.dcf._signal import full_frequencies, half_frequencies
 
 
@@ -76,10 +77,10 @@ class RealDft2(nn.Module):
     ) -> None:
         super().__init__()
         if n < 1 or n % 2 == 0:
-            raise ValueError(f"RealDft2 needs an odd size, got {n}")
+            raise InputError(f"RealDft2 needs an odd size, got {n}")
         band = n // 2 if band is None else band
         if not 0 <= band <= n // 2:
-            raise ValueError(f"band must lie in [0, {n // 2}] for size {n}, got {band}")
+            raise InputError(f"band must lie in [0, {n // 2}] for size {n}, got {band}")
         self.n, self.band, self.rows_f, self.k = n, band, 2 * band + 1, band + 1
         cy, sy = _forward_factors(n, band, window, scale, False, dtype)
         cx, sx = _forward_factors(n, band, window, scale, True, dtype)
@@ -103,7 +104,7 @@ class RealDft2(nn.Module):
     def forward(self, x: Tensor) -> tuple[Tensor, Tensor]:
         """Spectrum of patches ``(N, B, N)``: real and imaginary parts, each ``(N_f, B, K)``."""
         if x.dim() != 3 or x.shape[0] != self.n or x.shape[2] != self.n:
-            raise ValueError(f"expected ({self.n}, B, {self.n}) patches, got shape {tuple(x.shape)}")
+            raise InputError(f"expected ({self.n}, B, {self.n}) patches, got shape {tuple(x.shape)}")
         n, b, r, k = self.n, x.shape[1], self.rows_f, self.k
         u = torch.mm(x.reshape(n * b, n), self.cols).view(n, b * 2 * k)  # x transformed: (N, B, 2K)
         v = torch.mm(self.rows, u).view(2 * r, b, 2 * k)  # then y: Re rows then Im rows
@@ -112,7 +113,7 @@ class RealDft2(nn.Module):
     def inverse(self, spectrum: Tensor) -> Tensor:
         """Real signals ``(N, B, N)`` in FFT order from half spectra given as ``[re | im]`` ``(N_f, B, 2K)``."""
         if spectrum.dim() != 3 or spectrum.shape[0] != self.rows_f or spectrum.shape[2] != 2 * self.k:
-            raise ValueError(f"expected ({self.rows_f}, B, {2 * self.k}) spectra, got shape {tuple(spectrum.shape)}")
+            raise InputError(f"expected ({self.rows_f}, B, {2 * self.k}) spectra, got shape {tuple(spectrum.shape)}")
         n, b, k2 = self.n, spectrum.shape[1], 2 * self.k
         u = torch.mm(self.inv_rows, spectrum.reshape(self.rows_f, b * k2))  # (2N, B * 2K): y transformed
         out = torch.mm(u[:n].view(n * b, k2), self.inv_cols_cos)

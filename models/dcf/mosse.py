@@ -12,6 +12,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from core.errors import InputError
 from models.dcf._signal import check_signal, signal_dims
 from models.dcf.peak import response_peak
 from models.dcf.preprocess import dcf_preprocess
@@ -22,7 +23,7 @@ def gaussian_label(size: tuple[int, ...], sigma: float, *, device=None, dtype=to
     """Sampled Gaussian label with peak 1 at index 0, wrapped around (circular distance), std ``sigma``
     bins."""
     if sigma <= 0:
-        raise ValueError(f"sigma must be positive, got {sigma}")
+        raise InputError(f"sigma must be positive, got {sigma}")
     label = torch.ones((), device=device, dtype=dtype)
     for axis, n in enumerate(size):
         i = torch.arange(n, device=device, dtype=dtype)
@@ -50,7 +51,7 @@ def mosse_train(x: Tensor, y: Tensor, ndim: int = 2) -> tuple[Tensor, Tensor]:
     """
     check_signal(x, ndim, "x")
     if x.dim() < ndim + 1:
-        raise ValueError(f"x needs a sample axis before the {ndim} signal axes, got shape {tuple(x.shape)}")
+        raise InputError(f"x needs a sample axis before the {ndim} signal axes, got shape {tuple(x.shape)}")
     X, Y = _spectra(x, y.to(x.dtype), ndim)
     sample = -(ndim + 1)
     return (Y * X.conj()).sum(dim=sample), (X.real.square() + X.imag.square()).sum(dim=sample)
@@ -80,7 +81,7 @@ def mosse_filter(A: Tensor, B: Tensor, ndim: int = 2, eps: float = 0.0, eps_rel:
         ``(..., *K)`` complex conjugate filter spectrum ``H*``.
     """
     if eps < 0 or eps_rel < 0 or (eps == 0 and eps_rel == 0 and bool((B <= 0).any())):
-        raise ValueError("regularisation must be non-negative and positive where B has zeros")
+        raise InputError("regularisation must be non-negative and positive where B has zeros")
     reg = eps + eps_rel * B.mean(dim=signal_dims(ndim), keepdim=True)
     return A / (B + reg)
 

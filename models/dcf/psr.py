@@ -1,7 +1,7 @@
 """Peak-to-sidelobe ratio (Bolme et al. 2010): ``(g_max - mean_sl) / std_sl`` outside a peak window.
 
 The sidelobe is the whole response except a ``exclude``-wide window (per axis, circular) centred on the peak;
-the excluded values are left out of the statistics, unlike OpenCV's variants (see REFERENCE.md 3.1).
+the excluded values are left out of the statistics, unlike OpenCV's variants (thesis ch. 3.1).
 """
 
 from __future__ import annotations
@@ -9,6 +9,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from core.errors import InputError
 from models.dcf._signal import check_signal
 
 
@@ -25,7 +26,7 @@ def peak_to_sidelobe_ratio(response: Tensor, ndim: int = 2, exclude: int = 11, e
     check_signal(response, ndim, "response")
     size = tuple(response.shape[-ndim:])
     if exclude < 1 or exclude % 2 == 0:
-        raise ValueError(f"exclude must be a positive odd number, got {exclude}")
+        raise InputError(f"exclude must be a positive odd number, got {exclude}")
     n_side = 1
     for n in size:
         n_side *= n
@@ -33,7 +34,7 @@ def peak_to_sidelobe_ratio(response: Tensor, ndim: int = 2, exclude: int = 11, e
     for n in size:
         excluded *= min(exclude, n)
     if n_side - excluded < 2:
-        raise ValueError(f"response of size {size} leaves no sidelobe outside a {exclude}-wide window")
+        raise InputError(f"response of size {size} leaves no sidelobe outside a {exclude}-wide window")
     flat = response.flatten(-ndim)
     peak, arg = flat.max(dim=-1)
     # Gather the window around the peak (circularly) instead of masking the whole map; statistics of the sidelobe

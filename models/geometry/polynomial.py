@@ -10,6 +10,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from core.errors import InputError
 from models.geometry.midpoint import assemble_triangulation, midpoint_from_views
 from models.geometry.projection import Triangulation, check_cameras_and_points, finite_inputs
 from models.geometry.views import split_views
@@ -143,7 +144,7 @@ def triangulate_polynomial(P: Tensor, x: Tensor, min_parallax: float = 1e-3) -> 
     """
     check_cameras_and_points(P, x)
     if x.shape[1] != 2:
-        raise ValueError(f"the polynomial method takes exactly 2 views, got {x.shape[1]}")
+        raise InputError(f"the polynomial method takes exactly 2 views, got {x.shape[1]}")
     P, x, finite = finite_inputs(P, x)
     Pb = P.expand(x.shape[0], -1, -1, -1).double()
     F = fundamental_from_cameras(Pb[:, 0], Pb[:, 1])

@@ -13,6 +13,9 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from core.checks import check_same_dtype, check_tensor
+from core.errors import InputError
+
 
 class Triangulation(NamedTuple):
     """Result of a batched triangulation.
@@ -30,21 +33,16 @@ class Triangulation(NamedTuple):
 
 
 def check_cameras_and_points(P: Tensor, x: Tensor, min_views: int = 2) -> None:
-    """Raise a ValueError naming the problem unless ``P`` (B|1, N, 3, 4) and ``x`` (B, N, 2) fit together."""
-    if not isinstance(P, Tensor) or not isinstance(x, Tensor):
-        raise TypeError("cameras P and observations x must be torch tensors")
-    if P.ndim != 4 or P.shape[-2:] != (3, 4):
-        raise ValueError(f"cameras P must have shape (B, N, 3, 4), got {tuple(P.shape)}")
-    if x.ndim != 3 or x.shape[-1] != 2:
-        raise ValueError(f"observations x must have shape (B, N, 2), got {tuple(x.shape)}")
+    """Raise ``InputError`` naming the problem unless ``P`` (B|1, N, 3, 4) and ``x`` (B, N, 2) fit together."""
+    check_tensor(P, "cameras P (B, N, 3, 4)", shape=(None, None, 3, 4), floating=True)
+    check_tensor(x, "observations x (B, N, 2)", shape=(None, None, 2), floating=True)
     if P.shape[1] != x.shape[1]:
-        raise ValueError(f"cameras P have {P.shape[1]} views but observations x have {x.shape[1]}")
+        raise InputError(f"cameras P have {P.shape[1]} views but observations x have {x.shape[1]}")
     if P.shape[0] not in (1, x.shape[0]):
-        raise ValueError(f"cameras P have batch size {P.shape[0]}, expected 1 or {x.shape[0]} (the points)")
+        raise InputError(f"cameras P have batch size {P.shape[0]}, expected 1 or {x.shape[0]} (the points)")
     if x.shape[1] < min_views:
-        raise ValueError(f"triangulation needs at least {min_views} views per point, got {x.shape[1]}")
-    if not P.is_floating_point() or P.dtype != x.dtype:
-        raise ValueError(f"P and x must share one floating dtype, got {P.dtype} and {x.dtype}")
+        raise InputError(f"triangulation needs at least {min_views} views per point, got {x.shape[1]}")
+    check_same_dtype(("P", P), ("x", x))
 
 
 def finite_inputs(P: Tensor, x: Tensor) -> tuple[Tensor, Tensor, Tensor]:

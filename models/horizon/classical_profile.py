@@ -15,10 +15,10 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
-from data.errors import InputError
+from core.cylinder import panorama_focal, row_to_tangent, warp_panorama
+from core.errors import InputError
+from core.raycast import effective_radius
 from data.horizon.classical import edge_distance, hough_tilt
-from data.world.raycast import effective_radius
-from models.horizon.cylinder import panorama_focal, row_to_tangent, warp_panorama
 
 
 def classical_profile(

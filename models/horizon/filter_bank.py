@@ -14,8 +14,8 @@ chunk per tile.
 
 Profile normalisation (:func:`profile_normalize`): elevations in degrees, divided by their maximum when that
 exceeds ``norm_threshold_deg`` (the thesis's rule, "divide by the maximum if some h > 1.0"; its units are not
-stated, degrees are assumed here), then the mean is removed. No log, no window, no unit variance (REFERENCE.md
-4.4): the profile is periodic, so circular correlation over the full circle is exact.
+stated, degrees are assumed here), then the mean is removed. No log, no window, no unit variance (thesis
+ch. 4.4): the profile is periodic, so circular correlation over the full circle is exact.
 """
 
 from __future__ import annotations
@@ -30,10 +30,10 @@ import torch
 from torch import Tensor, nn
 from tqdm import tqdm
 
-from data.errors import InputError
+from core.errors import InputError
+from core.raycast import virtual_horizon
 from data.horizon.bank_io import BankWriter, FilterBank, dem_fingerprint
 from data.world.dem import Dem
-from data.world.raycast import virtual_horizon
 from models.dcf.mosse import Mosse, mosse_filter, mosse_train
 
 

@@ -9,16 +9,18 @@ and the heading of its band peak. Profiles can also come straight from a file or
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from data.errors import InputError
+from core.cylinder import column_azimuths, interp_profile, warp_panorama
+from core.errors import InputError
 from data.horizon.bank_io import FilterBank
-from models.horizon.cylinder import column_azimuths, interp_profile, warp_panorama
+from data.horizon.datamodule import resize_panorama
+from models.horizon.finder import sincos_to_angles
 from models.horizon.matching import band_psr, check_query
 
 
@@ -156,6 +158,34 @@ def locate(
                         scores if keep_scores else None)
 
 
+def panorama_profiles(
+    image: Tensor,
+    finder: Callable[[Tensor], Tensor],
+    segmenter: Callable[[Tensor], Tensor],
+    input_width: int = 512,
+) -> tuple[Tensor, Tensor, Tensor]:
+    """The network chain of thesis ch. 4.3 on tilted panoramas: HorizonFinder -> levelling -> HorizonSegmenter.
+
+    Args:
+        image: (B, 3, H, W) tilted 360-degree panoramas in [0, 1], column 0 forward.
+        finder: image (B, 3, h, w) -> (B, 4) (sin, cos) of pitch and roll (network or ``OnnxGraph``).
+        segmenter: levelled image (B, 3, h, w) -> (B, 2, w) tan elevation of horizon and water line.
+        input_width: network input width in px (the panorama is resized, keeping its aspect).
+    Returns:
+        profiles (B, 2, W) tan elevation of the horizon and the water line at the panorama's own width, pitch (B,)
+        and roll (B,) rad.
+    """
+    if input_width < 64 or input_width % 32:
+        raise InputError(f"the network input width must be a multiple of 32 and >= 64, got {input_width}")
+    with torch.no_grad():
+        pitch, roll = sincos_to_angles(finder(resize_panorama(image, input_width)))
+        level = warp_panorama(image, pitch.to(image.dtype), roll.to(image.dtype))
+        profiles = segmenter(resize_panorama(level, input_width)).to(image.dtype)
+    if profiles.shape[-1] != image.shape[-1]:
+        profiles = torch.stack([resample_profile(profiles[:, i], image.shape[-1]) for i in range(2)], 1)
+    return profiles, pitch, roll
+
+
 def network_profiles(
     image: Tensor,
     finder: Callable[[Tensor], Tensor],
@@ -163,33 +193,21 @@ def network_profiles(
     bins: int,
     input_width: int = 512,
 ) -> tuple[Tensor, Tensor, Tensor]:
-    """Horizon profiles of tilted panoramas by the networks (ch. 4.3) for matching.
-
-    Args:
-        image: (B, 3, H, W) tilted 360-degree panoramas in [0, 1], column 0 forward.
-        finder: image (B, 3, h, w) -> (B, 4) (sin, cos) of pitch and roll (network or ONNX session wrapper).
-        segmenter: levelled image (B, 3, h, w) -> (B, 2, w) tan elevation of horizon and water line.
-        bins: azimuth bins of the bank; input_width: network input width (the panorama is resized).
-    Returns:
-        profile (B, bins) tan elevation (column 0 at the heading), pitch (B,), roll (B,) rad.
-    """
-    from data.horizon.datamodule import resize_panorama
-    from models.horizon.finder import sincos_to_angles
-
-    with torch.no_grad():
-        pitch, roll = sincos_to_angles(finder(resize_panorama(image, input_width)))
-        level = warp_panorama(image, pitch.to(image.dtype), roll.to(image.dtype))
-        horizon = segmenter(resize_panorama(level, input_width))[:, 0]
-    return resample_profile(horizon.to(image.dtype), bins), pitch, roll
+    """Horizon profiles (B, bins) of tilted panoramas (B, 3, H, W) for matching, with pitch and roll (B,) rad
+    (``panorama_profiles``; its horizon resampled to the bank's ``bins``)."""
+    profiles, pitch, roll = panorama_profiles(image, finder, segmenter, input_width)
+    return resample_profile(profiles[:, 0], bins), pitch, roll
 
 
 class HorizonLocalizer:
-    """End to end: panoramas (via the networks) or profiles -> positions and headings on a filter bank.
+    """End to end (thesis ch. 4.4): panoramas (via the networks) or profiles -> positions and headings.
 
     Args:
         bank: the filter bank.
-        finder, segmenter: callables as in :func:`network_profiles` (needed for :meth:`from_images` only).
-        input_width: network input width; band_deg, exclude: as in :func:`locate`.
+        finder, segmenter: callables as in :func:`panorama_profiles` (needed for :meth:`from_images` only).
+        matcher: replaces the PyTorch band PSR (``locate``), e.g. the exported graph.
+        input_width: network input width; band_deg, exclude, drop_harmonics: as in :func:`locate`.
+        batch: panoramas through the networks at a time.
     """
 
     def __init__(
@@ -197,21 +215,38 @@ class HorizonLocalizer:
         bank: FilterBank,
         finder: Callable[[Tensor], Tensor] | None = None,
         segmenter: Callable[[Tensor], Tensor] | None = None,
+        matcher: Callable[[Tensor, Tensor, Tensor], tuple[Tensor, Tensor]] | None = None,
         input_width: int = 512,
         band_deg: float = 4.0,
         exclude: int = 11,
+        drop_harmonics: int = 0,
+        batch: int = 8,
     ) -> None:
-        self.bank, self.finder, self.segmenter = bank, finder, segmenter
+        if drop_harmonics and matcher is not None:
+            raise InputError("dropping harmonics needs the PyTorch matcher (export the matcher with "
+                             "--drop-harmonics instead)")
+        self.bank, self.finder, self.segmenter, self.matcher = bank, finder, segmenter, matcher
         self.input_width, self.band_deg, self.exclude = input_width, band_deg, exclude
+        self.drop_harmonics, self.batch = drop_harmonics, batch
 
-    def from_profiles(self, profile: Tensor, heading_deg: Tensor, keep_scores: bool = False) -> Localization:
-        return locate(self.bank, profile, heading_deg, self.band_deg, self.exclude, keep_scores=keep_scores)
-
-    def from_images(self, image: Tensor, heading_deg: Tensor, keep_scores: bool = False) -> Localization:
+    def image_profiles(self, images: Sequence[Tensor]) -> Tensor:
+        """(B, bins) horizon profiles of B tilted panoramas (each (3, H, W), or (1, 3, H, W)), ``batch`` at a time."""
         if self.finder is None or self.segmenter is None:
             raise InputError("localising panoramas needs the HorizonFinder and HorizonSegmenter models")
-        profile, _, _ = network_profiles(image, self.finder, self.segmenter, self.bank.bins, self.input_width)
-        return self.from_profiles(profile.float(), heading_deg, keep_scores)
+        chunks = []
+        for start in range(0, len(images), self.batch):
+            image = torch.cat([im.reshape(-1, *im.shape[-3:]) for im in images[start : start + self.batch]])
+            chunks.append(network_profiles(image, self.finder, self.segmenter, self.bank.bins, self.input_width)[0])
+        return torch.cat(chunks).float()
+
+    def from_profiles(self, profile: Tensor, heading_deg: Tensor, keep_scores: bool = False) -> Localization:
+        """Localise (B, bins) tan-elevation profiles with compass headings (B,) degrees."""
+        return locate(self.bank, profile, heading_deg, self.band_deg, self.exclude, keep_scores=keep_scores,
+                      matcher=self.matcher, drop_harmonics=self.drop_harmonics)
+
+    def from_images(self, images: Sequence[Tensor], heading_deg: Tensor, keep_scores: bool = False) -> Localization:
+        """Localise tilted panoramas (``image_profiles``) with compass headings (B,) degrees."""
+        return self.from_profiles(self.image_profiles(images), heading_deg, keep_scores)
 
 
 def heading_error_deg(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ import math
 import torch
 from torch import Tensor, nn
 
-from data.errors import InputError
+from core.errors import InputError
 from models.horizon.filter_bank import profile_normalize
 
 

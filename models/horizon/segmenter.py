@@ -68,11 +68,6 @@ def heights_to_tangent(heights: torch.Tensor, image_height: int, focal: float) -
     return heights * (image_height / 2.0) / focal
 
 
-def tangent_to_heights(tangent: torch.Tensor, image_height: int, focal: float) -> torch.Tensor:
-    """Inverse of ``heights_to_tangent``."""
-    return tangent * focal / (image_height / 2.0)
-
-
 class PanoramaSegmenter(nn.Module):
     """A ``HorizonSegmenter`` on whole 360-degree panoramas, returning tan elevation (the deployed form).
 

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 def klt_track(

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 def write_overlay_video(

@@ -35,7 +35,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 from tqdm import tqdm
 
-from data.errors import InputError
+from core.errors import InputError
 from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label
 from models.dcf._signal import full_frequencies
 from models.dcf.continuous import fourier_series_refine

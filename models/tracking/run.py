@@ -2,35 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 
-import cv2
 import numpy as np
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from models.tracking.good_features import good_features_to_track
 from models.tracking.klt import klt_track
 from models.tracking.point_tracker import METHODS, PointTracker
 
 ALL_METHODS = (*METHODS, "klt")
-
-
-@contextmanager
-def cpu_threads(n: int) -> Iterator[None]:
-    """Use ``n`` CPU threads in torch and OpenCV alike inside the block. Many small per-point tensors run
-    fastest, and least disturbed by other jobs, on one thread."""
-    if n < 1:
-        raise InputError(f"the number of threads must be positive, got {n}")
-    before = torch.get_num_threads(), cv2.getNumThreads()
-    torch.set_num_threads(n)
-    cv2.setNumThreads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before[0])
-        cv2.setNumThreads(before[1])
 
 
 def track_points(

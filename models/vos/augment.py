@@ -1,4 +1,4 @@
-"""FRTM first-frame augmentation (REFERENCE.md 5.5): the target is cut out, the hole inpainted (OpenCV
+"""FRTM first-frame augmentation (thesis ch. 5.3; paper D): the target is cut out, the hole inpainted (OpenCV
 Telea, radius 1), and the target pasted back at grid locations with rotation, scale, flip, skew and motion
 blur over a zoomed and blurred background. Sample 0 is the original frame. Warps use ``grid_sample``.
 """
@@ -14,7 +14,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from data.errors import InputError
+from core.errors import InputError
 
 ROTATIONS = (5.0, -5.0, 10.0, -10.0, 20.0, -20.0, 30.0, -30.0, 45.0, -45.0)
 SCALES = (0.5, 0.7, 1.0, 1.5, 2.0, 2.5)

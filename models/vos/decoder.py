@@ -1,4 +1,4 @@
-"""FRTM segmentation decoder (thesis ch. 5.3, fig. 5.3-5.4; REFERENCE.md 5.6): DFN-style stages from the
+"""FRTM segmentation decoder (thesis ch. 5.3, fig. 5.3-5.4; paper D): DFN-style stages from the
 deepest backbone stage to the shallowest, each with a target segmentation encoder (TSE) that injects the
 resized target-model score, refinement residual blocks (RRB) and a channel attention block (CAB), followed by
 the upsampler from stride 4 to image resolution.
@@ -10,7 +10,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 def _conv(cin: int, cout: int, k: int) -> nn.Conv2d:

@@ -10,30 +10,41 @@ import cv2
 import numpy as np
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
+from data.vos.datamodule import synthetic_videos
 from data.vos.davis import davis_sequences
 from data.vos.io import davis_palette, list_frames, read_frame, read_mask, write_mask
+from models.checkpoint import datamodule_settings
 from models.vos.metrics import evaluate_sequence, write_csv
-from models.vos.tracker import FRTMTracker
+from models.vos.tracker import FRTMLoop
+
+#: Synthetic video settings when a checkpoint stores no data module: key -> (data-module name, default).
+SYNTHETIC_DEFAULTS = {"height": ("height", 96), "width": ("width", 160), "n_objects": ("eval_objects", 2),
+                      "n_distractors": ("n_distractors", 1), "object_scale": ("object_scale", (0.15, 0.3))}
 
 
-def load_tracker(ckpt: str | None, onnx_dir: str | None) -> FRTMTracker:
-    """Tracker from a Lightning checkpoint or an ONNX export folder (exactly one of them)."""
-    if (ckpt is None) == (onnx_dir is None):
-        raise InputError("give exactly one of --ckpt CKPT or --onnx DIR")
-    if onnx_dir is not None:
-        from export.vos_onnx import OnnxFRTMTracker
+def synthetic_test_settings(ckpt: str | Path | None = None, **given) -> dict:
+    """Settings of ``data.vos.datamodule.synthetic_videos`` for held-out videos like a checkpoint's training data:
+    ``given`` values (None = not given), else the checkpoint's data module, else ``SYNTHETIC_DEFAULTS``."""
+    stored = datamodule_settings(ckpt) if ckpt else {}
+    unknown = sorted(set(given) - set(SYNTHETIC_DEFAULTS))
+    if unknown:
+        raise InputError(f"unknown synthetic video settings {unknown}")
+    out = {}
+    for key, (stored_key, default) in SYNTHETIC_DEFAULTS.items():
+        value = given.get(key)
+        out[key] = value if value is not None else stored.get(stored_key, default)
+    out["object_scale"] = tuple(float(v) for v in out["object_scale"])
+    return out
 
-        return OnnxFRTMTracker(onnx_dir)
-    if not Path(ckpt).is_file():
-        raise InputError(f"checkpoint {ckpt} does not exist")
-    from models.vos.lit import FRTMSegmentation
 
-    try:
-        model = FRTMSegmentation.load_from_checkpoint(ckpt, map_location="cpu", weights_only=False)
-    except (RuntimeError, KeyError, TypeError) as err:
-        raise InputError(f"checkpoint {ckpt} is not an FRTMSegmentation checkpoint ({err})") from err
-    return model.eval().make_tracker()
+def checkpoint_test_videos(
+    ckpt: str | Path | None, count: int, n_frames: int = 20, **given
+) -> list[tuple[str, torch.Tensor, torch.Tensor]]:
+    """``count`` held-out (``test`` seeds) synthetic videos of ``n_frames`` with ``synthetic_test_settings``."""
+    if count <= 0:
+        return []
+    return synthetic_videos("test", count, 0, n_frames=n_frames, **synthetic_test_settings(ckpt, **given))
 
 
 def check_first_frame(frames: list[Path], mask_path: str | Path) -> torch.Tensor:
@@ -56,7 +67,7 @@ def _overlay(image: torch.Tensor, labels: torch.Tensor, palette: np.ndarray) -> 
 
 
 def segment_folder(
-    tracker: FRTMTracker, video: str | Path, mask_path: str | Path, out: str | Path, overlay: str | None = None,
+    tracker: FRTMLoop, video: str | Path, mask_path: str | Path, out: str | Path, overlay: str | None = None,
     fps: float = 24.0,
 ) -> tuple[int, float]:
     """Segment the frames of ``video`` from the first-frame mask; write ``out/<frame>.png`` palette masks and
@@ -82,7 +93,7 @@ def segment_folder(
     return len(frames), time.perf_counter() - start
 
 
-def _with_images(tracker: FRTMTracker, images, mask: torch.Tensor):
+def _with_images(tracker: FRTMLoop, images, mask: torch.Tensor):
     """Yield (image, labels) pairs while the tracker consumes the same frames; checks frame sizes."""
     size = mask.shape
     kept: list[torch.Tensor] = []
@@ -99,7 +110,7 @@ def _with_images(tracker: FRTMTracker, images, mask: torch.Tensor):
 
 
 def segment_davis(
-    tracker: FRTMTracker, root: str | Path, split: str, resolution: str, out: str | Path,
+    tracker: FRTMLoop, root: str | Path, split: str, resolution: str, out: str | Path,
     max_frames: int | None = None,
 ) -> tuple[dict[str, float], float]:
     """Segment every sequence of a DAVIS split, write palette PNGs under ``out/<sequence>/`` and the

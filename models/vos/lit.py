@@ -1,5 +1,5 @@
-"""LightningModule for FRTM (REFERENCE.md 5.7): trains the decoder (optionally the backbone too) with the
-target model in the loop, and evaluates the full tracker on whole videos with the DAVIS J&F protocol.
+"""LightningModule for FRTM (thesis ch. 5.3; paper D): trains the decoder (optionally the backbone too)
+with the target model in the loop, and evaluates the full tracker on whole videos with the DAVIS J&F protocol.
 
 Training step, per sample: augment the reference frame (first-frame augmentation), fit a fresh target model
 on it with the optimizer module (C = 32, lambda = (1e-5, 1e-4), no pixel weights), apply it to the test
@@ -19,8 +19,9 @@ import lightning as L
 import torch
 import torch.nn.functional as F
 
-from data.errors import InputError
+from core.errors import InputError
 from models.backbones import build_backbone
+from models.checkpoint import read_checkpoint
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder
 from models.vos.losses import segmentation_loss
@@ -29,6 +30,7 @@ from models.vos.optimizer import GaussNewtonCG, build_optimizer
 from models.vos.target_features import TargetFeatures
 from models.vos.target_model import apply_filter, project, target_model_init
 from models.vos.tracker import FRTMTracker
+from models.vos.tracker_settings import FRTMSettings
 
 
 class FRTMSegmentation(L.LightningModule):
@@ -56,7 +58,7 @@ class FRTMSegmentation(L.LightningModule):
         lr, weight_decay, lr_step, lr_gamma: Adam and StepLR (FRTM 1e-3, 1e-5, 127, 0.1). amsgrad: FRTM's
             Adam variant (True); its step sizes never grow again after large early gradients, which can stall a
             network trained from scratch.
-        tracker: keyword arguments of ``FRTMTracker`` for validation, test and inference.
+        tracker: ``FRTMSettings`` fields for validation, test and inference (the rest keep their defaults).
         seed: seeds augmentation and filter initialisation.
         init_checkpoint: checkpoint of an ``FRTMSegmentation`` with the same architecture whose weights
             ``fit`` starts from (fine-tuning, e.g. synthetic -> DAVIS). Unlike ``--ckpt_path`` it restores no
@@ -111,23 +113,22 @@ class FRTMSegmentation(L.LightningModule):
         path = self.hparams.init_checkpoint
         if stage != "fit" or not path:
             return
-        if not Path(path).is_file():
-            raise InputError(f"init_checkpoint {path} does not exist")
-        try:
-            state = torch.load(path, map_location="cpu", weights_only=False)["state_dict"]
-        except Exception as err:  # any unreadable file is an input error
-            raise InputError(f"init_checkpoint {path} is not a readable Lightning checkpoint: {err}") from err
+        state = read_checkpoint(path, "init_checkpoint")["state_dict"]
         try:
             self.load_state_dict(state)
         except RuntimeError as err:  # missing, unexpected or differently shaped weights
             raise InputError(f"init_checkpoint {path} does not match this model: {err}") from err
 
-    def make_tracker(self, use_decoder: bool = True, **overrides) -> FRTMTracker:
-        """A tracker sharing this module's backbone and decoder (``tracker`` hyper-parameters + overrides)."""
+    def tracker_settings(self, **overrides) -> FRTMSettings:
+        """The tracker settings: this system's feature input, its ``tracker`` hyper-parameters, then ``overrides``."""
         h = self.hparams
-        kwargs = {"feature_layer": h.feature_layer, "feature_norm": h.feature_norm,
-                  "feature_scale": h.feature_scale, **(h.tracker or {}), **overrides}
-        return FRTMTracker(self.backbone, self.decoder, use_decoder=use_decoder, **kwargs).eval()
+        return FRTMSettings.from_dict({"feature_layer": h.feature_layer, "feature_norm": h.feature_norm,
+                                       "feature_scale": h.feature_scale, **(h.tracker or {}), **overrides})
+
+    def make_tracker(self, use_decoder: bool = True, **overrides) -> FRTMTracker:
+        """A tracker sharing this module's backbone and decoder (``tracker_settings(**overrides)``)."""
+        settings = self.tracker_settings(use_decoder=use_decoder, **overrides)
+        return FRTMTracker(self.backbone, self.decoder, settings).eval()
 
     def forward(self, frames: torch.Tensor, first_mask: torch.Tensor) -> torch.Tensor:
         """Segment a video: frames (T, 3, H, W) in [0, 1] or uint8, first-frame labels (H, W) -> (T, H, W)."""

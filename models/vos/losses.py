@@ -1,6 +1,6 @@
 """Segmentation losses for training the FRTM decoder.
 
-FRTM trains with plain binary cross-entropy (REFERENCE.md 5.7). With small objects (a few percent of the
+FRTM trains with plain binary cross-entropy (paper D, thesis ch. 5.3). With small objects (a few percent of the
 pixels) and a decoder trained from scratch, plain BCE first settles on "all background"; the options below
 counter that: a positive-class weight on the BCE and a soft-IoU (Jaccard) term, whose gradient does not
 shrink with the foreground fraction. A boundary weight raises the BCE on the pixels near the mask's contour,
@@ -13,7 +13,7 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-from data.errors import InputError
+from core.errors import InputError
 
 LOSSES = ("bce", "bce_iou")
 

@@ -1,4 +1,4 @@
-"""FRTM sample memory (REFERENCE.md 5.4): fixed-capacity slots of projected features, soft labels and pixel
+"""FRTM sample memory (thesis ch. 5.3; paper D): fixed-capacity slots of projected features, soft labels and pixel
 weights with decaying sample weights.
 
 The initial (augmented) samples get weights 1 each and the original frame ``first_weight`` (2), normalised.
@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 class Memory(NamedTuple):

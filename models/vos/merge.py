@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 
 EPS = 1e-7
 

@@ -1,4 +1,4 @@
-"""DAVIS evaluation (REFERENCE.md section 7): region similarity J, boundary accuracy F and their statistics.
+"""DAVIS evaluation (Perazzi et al., CVPR 2016): region similarity J, boundary accuracy F and their statistics.
 
 Follows the official davis2017-evaluation protocol: J is the IoU (1 when both masks are empty); F compares
 1-px boundary maps dilated by a disk of radius ``ceil(0.008 * ||(H, W)||)`` px (8 px at 480x854); void
@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Sequence
 from pathlib import Path
 
 import torch
 import torch.nn.functional as F
 
-from data.errors import InputError
+from core.errors import InputError
 
 BOUND_TH = 0.008
 CSV_COLUMNS = ("J&F-Mean", "J-Mean", "J-Recall", "J-Decay", "F-Mean", "F-Recall", "F-Decay")
@@ -211,11 +210,3 @@ def write_csv(per_sequence: dict[str, dict[int, dict[str, float]]], path: str | 
             for obj, stats in objects.items():
                 writer.writerow((f"{name}_{obj}", *(f"{stats[k]:.6f}" for k in CSV_COLUMNS)))
     return glob
-
-
-def evaluate_sequences(
-    sequences: Sequence[tuple[str, torch.Tensor, torch.Tensor]], bound_th: float = BOUND_TH
-) -> tuple[dict[str, float], dict[str, dict[int, dict[str, float]]]]:
-    """Evaluate ``(name, pred, gt)`` label-map triples; returns (global, per-sequence) statistics."""
-    per_sequence = {name: evaluate_sequence(p, g, bound_th=bound_th) for name, p, g in sequences}
-    return summarize(per_sequence), per_sequence

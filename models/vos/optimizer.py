@@ -1,4 +1,4 @@
-"""Target-model optimizers as ``nn.Module``s (thesis ch. 5.3, REFERENCE.md 5.3): Gauss-Newton with
+"""Target-model optimizers as ``nn.Module``s (thesis ch. 5.3, eq. 5.2; paper D): Gauss-Newton with
 preconditioned conjugate gradient, and steepest descent with the exact line-search step.
 
 Both use only the explicit Jacobian products of ``TargetModelLoss`` (convolutions, transposed convolutions,
@@ -16,7 +16,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from data.errors import InputError
+from core.errors import InputError
 from models.vos.target_model import TargetModelLoss
 
 CGState = tuple[list[torch.Tensor], torch.Tensor, list[torch.Tensor]]  # (direction p, rho (B,), previous r)

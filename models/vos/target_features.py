@@ -8,7 +8,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from data.errors import InputError
+from core.errors import InputError
 
 FEATURE_NORMS = ("none", "fixed", "instance_l2")
 

@@ -26,7 +26,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 def project(x: torch.Tensor, wp: torch.Tensor) -> torch.Tensor:

@@ -1,4 +1,4 @@
-"""FRTM online inference over a video (thesis ch. 5.3, REFERENCE.md 5.3-5.4, 5.8).
+"""FRTM online inference over a video (thesis ch. 5.3; paper D).
 
 frame -> backbone features -> per object: target model W_f * (W_p * x) on stride-16 features -> coarse score
 -> decoder (with all backbone stages) -> logit -> soft aggregation over objects -> labels; the merged soft
@@ -11,6 +11,7 @@ the decoder (the ``target_model_only`` baseline).
 from __future__ import annotations
 
 import time
+from abc import ABC, abstractmethod
 from collections import defaultdict
 from collections.abc import Iterable, Iterator
 
@@ -18,7 +19,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from data.errors import InputError
+from core.errors import InputError
 from models.backbones import Backbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder
@@ -27,6 +28,7 @@ from models.vos.merge import merge_objects
 from models.vos.optimizer import build_optimizer
 from models.vos.target_features import TargetFeatures
 from models.vos.target_model import apply_filter, hinge_pixel_weights, project, target_model_init
+from models.vos.tracker_settings import FRTMSettings
 
 COMPONENTS = ("backbone", "target_model", "decoder", "update", "init")
 
@@ -47,85 +49,18 @@ def frame_memory_insert(
     return memory_insert(memory, z, labels, v, valid, lr)
 
 
-class FRTMTracker(nn.Module):
-    """Video object segmentation with fast and robust target models.
+class FRTMLoop(ABC):
+    """The host side of FRTM shared by every engine: objects, memory, the update schedule and the merging of
+    objects, around five computational hooks (``target_features``, ``fit_target_models``, ``segment_frame``,
+    ``insert_samples``, ``optimize_filters``) that ``FRTMTracker`` runs in PyTorch and
+    ``models.vos.onnx_tracker.OnnxFRTMTracker`` in onnxruntime.
 
     Args:
-        backbone: feature extractor returning ``feature_layer`` and the decoder's stages.
-        decoder: segmentation decoder, or None (target-model-only segmentation).
-        feature_layer: stage the target model reads (stride 16; FRTM: ResNet layer3), or stages joined by ``+``
-            at the first one's resolution (``layer2+layer3``, DAVOS); ``TargetFeatures``.
-        feature_norm, feature_scale: ``none``, ``fixed`` (divided by ``feature_scale``) or ``instance_l2``
-            (unit-RMS features per frame); ``models.vos.target_features.normalize_features``.
-        channels: C, the projection width (96 at inference, 32 in training).
-        kernel_size: W_f size (3).
-        num_aug: first-frame samples including the original (5).
-        memory_size: memory capacity (80); learning_rate: memory weight decay rate (0.1).
-        update_every: re-optimise W_f when frame % update_every == 0 (8).
-        init_schedule / update_schedule: CG iterations per GN step ((5, 10, 10, 10, 10) / (10,)).
-        reg: (lambda_p, lambda_f) (1e-4, 1e-2).
-        optimizer: ``gauss_newton`` or ``steepest_descent`` (sum of the schedule as steps).
-        pixel_weighting: use the hinge pixel weights (fg_target 0.1).
-        min_update_pixels: an object's frame enters its memory only with this many pixels above 0.5 (10).
-        label_stride: memory labels are stored at 1/label_stride of the image size (1 = full resolution).
-        optimizer_dtype: precision of the W_p/W_f fits and updates (``float64``; filters and the CG state are
-            kept in the features' precision between calls). In float32 the closed loop (fit -> masks -> memory
-            -> update) amplifies rounding: a 1e-6 relative change of the input frames changed up to 7 % of an
-            object's mask on a held-out synthetic video; in float64 the masks stayed identical.
-        use_decoder: False segments by thresholding the upsampled target-model score.
-        seed: seeds the augmentation and the filter initialisation.
+        settings: the tracker settings (``FRTMSettings``).
     """
 
-    def __init__(
-        self,
-        backbone: Backbone,
-        decoder: SegmentationDecoder | None = None,
-        feature_layer: str = "layer3",
-        feature_norm: str = "none",
-        feature_scale: float = 1.0,
-        channels: int = 96,
-        kernel_size: int = 3,
-        num_aug: int = 5,
-        memory_size: int = 80,
-        learning_rate: float = 0.1,
-        update_every: int = 8,
-        init_schedule: tuple[int, ...] | list[int] = (5, 10, 10, 10, 10),
-        update_schedule: tuple[int, ...] | list[int] = (10,),
-        reg: tuple[float, float] | list[float] = (1e-4, 1e-2),
-        optimizer: str = "gauss_newton",
-        pixel_weighting: bool = True,
-        fg_target: float = 0.1,
-        min_update_pixels: int = 10,
-        label_stride: int = 1,
-        optimizer_dtype: str = "float64",
-        use_decoder: bool = True,
-        seed: int = 0,
-    ) -> None:
-        super().__init__()
-        self.target_input = TargetFeatures(feature_layer, backbone.channels, backbone.strides, feature_norm,
-                                           feature_scale)
-        self.backbone = backbone
-        self.decoder = decoder
-        self.feature_layer = feature_layer
-        self.feature_norm = feature_norm
-        self.feature_scale = feature_scale
-        self.channels = channels
-        self.kernel_size = kernel_size
-        self.num_aug = num_aug
-        self.memory_size = memory_size
-        self.learning_rate = learning_rate
-        self.update_every = update_every
-        self.init_optimizer = build_optimizer(optimizer, init_schedule, reg)
-        self.update_optimizer = build_optimizer(optimizer, update_schedule, reg)
-        self.pixel_weighting = pixel_weighting
-        self.fg_target = fg_target
-        self.min_update_pixels = min_update_pixels
-        self.label_stride = label_stride
-        if optimizer_dtype not in ("float32", "float64"):
-            raise InputError(f"optimizer_dtype must be 'float32' or 'float64', got {optimizer_dtype!r}")
-        self.optimizer_dtype = optimizer_dtype
-        self.use_decoder = use_decoder and decoder is not None
-        self.seed = seed
+    def __init__(self, settings: FRTMSettings) -> None:
+        self.settings = settings
         self.timings: dict[str, float] = defaultdict(float)
         self.reset()
 
@@ -147,78 +82,40 @@ class FRTMTracker(nn.Module):
         self.timings[name] += (self._tic(device) - start) * 1000
 
     def _label_size(self, size: tuple[int, int]) -> tuple[int, int]:
-        return (max(1, size[0] // self.label_stride), max(1, size[1] // self.label_stride))
+        return (max(1, size[0] // self.settings.label_stride), max(1, size[1] // self.settings.label_stride))
 
     def _to_label_res(self, masks: torch.Tensor) -> torch.Tensor:
         """(N, H, W) -> (N, H', W') soft masks at the memory label resolution."""
-        if self.label_stride == 1:
+        if self.settings.label_stride == 1:
             return masks
         return F.interpolate(masks[:, None], size=self._label_size(masks.shape[-2:]), mode="area")[:, 0]
 
     def _pixel_weights(self, labels: torch.Tensor) -> torch.Tensor:
-        if not self.pixel_weighting:
+        if not self.settings.pixel_weighting:
             return torch.ones_like(labels)
-        return hinge_pixel_weights(labels, self.fg_target, self.min_update_pixels)
+        return hinge_pixel_weights(labels, self.settings.fg_target, self.settings.min_update_pixels)
 
-    # The five hooks below are the computational parts; export/vos_onnx.py overrides them with onnxruntime.
-
+    @abstractmethod
     def target_features(self, images: torch.Tensor) -> torch.Tensor:
         """Target-model features (M, D, h, w) of images (M, 3, H, W)."""
-        return torch.cat([self.target_input(self.backbone(x[None])) for x in images])
 
+    @abstractmethod
     def fit_target_models(
         self, x: torch.Tensor, y: torch.Tensor, v: torch.Tensor, gamma: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Joint W_p/W_f fit on the augmented samples: x (B, K, D, h, w), y, v (B, K, H', W'), gamma (B, K)."""
-        b, d = x.shape[0], x.shape[2]
-        wp, wf = target_model_init(b, d, self.channels, self.kernel_size, self.seed, x.dtype, x.device)
-        dt = getattr(torch, self.optimizer_dtype)
-        wp, wf, _, _ = self.init_optimizer(x.to(dt), y.to(dt), v.to(dt) if self.pixel_weighting else None,
-                                           gamma.to(dt), wf.to(dt), wp.to(dt))
-        return wp.to(x.dtype), wf.to(x.dtype)
 
+    @abstractmethod
     def segment_frame(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Per-object logits (N, H, W) and projected features (N, C, h, w) of one frame (3, H, W)."""
-        device = image.device
-        start = self._tic(device)
-        feats = self.backbone(image[None])
-        self._toc("backbone", start, device)
-        start = self._tic(device)
-        z = project(self.target_input(feats)[:, None], self.wp)[:, 0]  # (N, C, h, w)
-        score = apply_filter(z[:, None], self.wf)[:, 0]  # (N, h, w)
-        self._toc("target_model", start, device)
-        start = self._tic(device)
-        size = (image.shape[-2], image.shape[-1])
-        if self.use_decoder:
-            logits = self.decoder(score[:, None], feats, size)[:, 0]
-        else:
-            up = F.interpolate(score[:, None], size=size, mode="bilinear", align_corners=False)[:, 0]
-            logits = (up - 0.5) * 10  # score 0.5 <-> probability 0.5
-        self._toc("decoder", start, device)
-        return logits, z
 
+    @abstractmethod
     def insert_samples(self, z: torch.Tensor, y: torch.Tensor) -> None:
         """Insert projected features (N, C, h, w) and soft labels (N, H', W') into the memory."""
-        self.memory = frame_memory_insert(self.memory, z, y, self.learning_rate, self.pixel_weighting,
-                                          self.fg_target, self.min_update_pixels)
 
+    @abstractmethod
     def optimize_filters(self) -> None:
         """Re-optimise W_f on the filled memory slots."""
-        n = int((self.memory.weights > 0).sum(1).max())
-        mem = self.memory
-        dt, keep = getattr(torch, self.optimizer_dtype), self.wf.dtype
-        state = self.cg_state
-        if state is not None:
-            state = ([t.to(dt) for t in state[0]], state[1].to(dt), [t.to(dt) for t in state[2]])
-        _, wf, state, _ = self.update_optimizer(
-            mem.features[:, :n].to(dt), mem.labels[:, :n].to(dt), mem.pixel_weights[:, :n].to(dt),
-            mem.weights[:, :n].to(dt), self.wf.to(dt), state=state,
-        )
-        self.wf = wf.to(keep)
-        if state is not None:  # steepest descent keeps no state
-            p, rho, r_prev = state
-            state = ([t.to(keep) for t in p], rho.to(keep), [t.to(keep) for t in r_prev])
-        self.cg_state = state
 
     def add_objects(self, image: torch.Tensor, labels: torch.Tensor, ids: list[int]) -> None:
         """Train target models for new objects ``ids`` whose masks are ``labels == id`` in ``image``.
@@ -235,10 +132,10 @@ class FRTMTracker(nn.Module):
             mask = (labels == obj).to(image.dtype)
             if mask.sum() == 0:
                 raise InputError(f"the first mask of object {obj} is empty")
-            im, m = first_frame_augment(image, mask, self.num_aug, self.seed + 7919 * i + obj)
+            im, m = first_frame_augment(image, mask, self.settings.num_aug, self.settings.seed + 7919 * i + obj)
             images.append(im)
             masks.append(m)
-        b, k = len(ids), self.num_aug
+        b, k = len(ids), self.settings.num_aug
         feats = self.target_features(torch.cat(images))
         x = feats.view(b, k, *feats.shape[1:])
         y = self._to_label_res(torch.cat(masks)).view(b, k, *self._label_size(image.shape[-2:]))
@@ -247,7 +144,7 @@ class FRTMTracker(nn.Module):
         gamma[:, 0] = 2
         gamma = gamma / gamma.sum(1, keepdim=True)
         wp, wf = self.fit_target_models(x, y, v, gamma)
-        memory = memory_init(project(x, wp), y, v, self.memory_size)
+        memory = memory_init(project(x, wp), y, v, self.settings.memory_size)
         if self.ids:
             mem = self.memory
             memory = Memory(*(torch.cat([a, c], 0) for a, c in zip(mem, memory, strict=True)))
@@ -278,7 +175,7 @@ class FRTMTracker(nn.Module):
         device = soft.device
         start = self._tic(device)
         self.insert_samples(z, self._to_label_res(soft))
-        if self.frame % self.update_every == 0:
+        if self.frame % self.settings.update_every == 0:
             self.optimize_filters()
         self._toc("update", start, device)
 
@@ -321,3 +218,90 @@ class FRTMTracker(nn.Module):
             if new_ids:
                 self.add_objects(image, given.to(image.device), new_ids)
             yield labels
+
+
+class FRTMTracker(nn.Module, FRTMLoop):
+    """Video object segmentation with fast and robust target models, computed in PyTorch.
+
+    Args:
+        backbone: feature extractor returning ``settings.feature_layer`` and the decoder's stages.
+        decoder: segmentation decoder, or None (target-model-only segmentation).
+        settings: ``FRTMSettings`` (default: the paper's inference settings).
+    """
+
+    def __init__(
+        self, backbone: Backbone, decoder: SegmentationDecoder | None = None, settings: FRTMSettings | None = None
+    ) -> None:
+        nn.Module.__init__(self)
+        settings = settings or FRTMSettings()
+        self.backbone = backbone
+        self.decoder = decoder
+        self.target_input = TargetFeatures(settings.feature_layer, backbone.channels, backbone.strides,
+                                           settings.feature_norm, settings.feature_scale)
+        self.init_optimizer = build_optimizer(settings.optimizer, settings.init_schedule, settings.reg)
+        self.update_optimizer = build_optimizer(settings.optimizer, settings.update_schedule, settings.reg)
+        FRTMLoop.__init__(self, settings)
+
+    @property
+    def use_decoder(self) -> bool:
+        """Whether the decoder segments (else the thresholded target-model score)."""
+        return self.settings.use_decoder and self.decoder is not None
+
+    def target_features(self, images: torch.Tensor) -> torch.Tensor:
+        """Target-model features (M, D, h, w) of images (M, 3, H, W)."""
+        return torch.cat([self.target_input(self.backbone(x[None])) for x in images])
+
+    def fit_target_models(
+        self, x: torch.Tensor, y: torch.Tensor, v: torch.Tensor, gamma: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Joint W_p/W_f fit on the augmented samples: x (B, K, D, h, w), y, v (B, K, H', W'), gamma (B, K)."""
+        b, d, s = x.shape[0], x.shape[2], self.settings
+        wp, wf = target_model_init(b, d, s.channels, s.kernel_size, s.seed, x.dtype, x.device)
+        dt = getattr(torch, s.optimizer_dtype)
+        wp, wf, _, _ = self.init_optimizer(x.to(dt), y.to(dt), v.to(dt) if s.pixel_weighting else None,
+                                           gamma.to(dt), wf.to(dt), wp.to(dt))
+        return wp.to(x.dtype), wf.to(x.dtype)
+
+    def segment_frame(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per-object logits (N, H, W) and projected features (N, C, h, w) of one frame (3, H, W)."""
+        device = image.device
+        start = self._tic(device)
+        feats = self.backbone(image[None])
+        self._toc("backbone", start, device)
+        start = self._tic(device)
+        z = project(self.target_input(feats)[:, None], self.wp)[:, 0]  # (N, C, h, w)
+        score = apply_filter(z[:, None], self.wf)[:, 0]  # (N, h, w)
+        self._toc("target_model", start, device)
+        start = self._tic(device)
+        size = (image.shape[-2], image.shape[-1])
+        if self.use_decoder:
+            logits = self.decoder(score[:, None], feats, size)[:, 0]
+        else:
+            up = F.interpolate(score[:, None], size=size, mode="bilinear", align_corners=False)[:, 0]
+            logits = (up - 0.5) * 10  # score 0.5 <-> probability 0.5
+        self._toc("decoder", start, device)
+        return logits, z
+
+    def insert_samples(self, z: torch.Tensor, y: torch.Tensor) -> None:
+        """Insert projected features (N, C, h, w) and soft labels (N, H', W') into the memory."""
+        s = self.settings
+        self.memory = frame_memory_insert(self.memory, z, y, s.learning_rate, s.pixel_weighting, s.fg_target,
+                                          s.min_update_pixels)
+
+    def optimize_filters(self) -> None:
+        """Re-optimise W_f on the filled memory slots."""
+        n = int((self.memory.weights > 0).sum(1).max())
+        mem = self.memory
+        dt, keep = getattr(torch, self.settings.optimizer_dtype), self.wf.dtype
+        state = self.cg_state
+        if state is not None:
+            state = ([t.to(dt) for t in state[0]], state[1].to(dt), [t.to(dt) for t in state[2]])
+        _, wf, state, _ = self.update_optimizer(
+            mem.features[:, :n].to(dt), mem.labels[:, :n].to(dt), mem.pixel_weights[:, :n].to(dt),
+            mem.weights[:, :n].to(dt), self.wf.to(dt), state=state,
+        )
+        self.wf = wf.to(keep)
+        if state is not None:  # steepest descent keeps no state
+            p, rho, r_prev = state
+            state = ([t.to(keep) for t in p], rho.to(keep), [t.to(keep) for t in r_prev])
+        self.cg_state = state

@@ -4,8 +4,9 @@ import torch
 from torch import nn
 from torch.export import Dim
 
-from export.onnx import export_onnx, onnx_session, run_onnx
+from export.onnx import export_onnx
 from models.backbones import EfficientNetLiteBackbone
+from models.onnx_graph import onnx_session, run_onnx
 
 
 class Stages(nn.Module):

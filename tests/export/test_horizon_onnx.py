@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from data.errors import InputError
-from export.horizon_onnx import example_inputs, export_horizon, load_network, parity
+from core.errors import InputError
+from export.horizon_onnx import example_inputs, export_horizon, parity
+from models.builders import horizon_network
 
 SMALL = {"backbone": "resnet18", "stage": "layer2", "heads": 2, "head_channels": 8, "channels": 16}
 
@@ -13,7 +14,7 @@ SMALL = {"backbone": "resnet18", "stage": "layer2", "heads": 2, "head_channels":
 @pytest.mark.parametrize("which", ["finder", "segmenter", "level"])
 def test_onnx_matches_pytorch(which, tmp_path):
     torch.manual_seed(0)
-    model = load_network(which, **({} if which == "level" else SMALL))
+    model = horizon_network(which, **({} if which == "level" else SMALL))
     if which != "level":  # give batch norm non-trivial statistics
         for module in model.modules():
             if isinstance(module, torch.nn.BatchNorm2d):
@@ -29,8 +30,8 @@ def test_onnx_matches_pytorch(which, tmp_path):
 
 def test_export_bad_input(tmp_path):
     with pytest.raises(InputError, match="multiples of the backbone stride"):
-        export_horizon("finder", load_network("finder", **SMALL), tmp_path / "x.onnx", height=64, width=250)
-    with pytest.raises(InputError, match="checkpoint not found"):
-        load_network("segmenter", tmp_path / "missing.ckpt")
-    with pytest.raises(InputError, match="--which"):
-        load_network("localizer")
+        export_horizon("finder", horizon_network("finder", **SMALL), tmp_path / "x.onnx", height=64, width=250)
+    with pytest.raises(InputError, match="missing.ckpt does not exist"):
+        horizon_network("segmenter", tmp_path / "missing.ckpt")
+    with pytest.raises(InputError, match="must be one of finder, segmenter, level"):
+        horizon_network("localizer")

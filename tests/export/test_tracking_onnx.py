@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from export.onnx import onnx_session, run_onnx
 from export.tracking_onnx import example_inputs, export_tracking_step
+from models.onnx_graph import onnx_session, run_onnx
 from models.tracking import PointTracker
 
 

@@ -2,9 +2,9 @@ import numpy as np
 import torch
 
 from data.sfm.synthetic import synthetic_cube_scene
-from export.onnx import onnx_session, run_onnx
 from export.triangulation import export_dogleg
 from models.geometry.dogleg import TriangulateDogleg
+from models.onnx_graph import onnx_session, run_onnx
 
 
 def test_dogleg_onnx_matches_pytorch(tmp_path):

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from data.errors import InputError
+from core.errors import InputError
 from data.flow import read_flo, write_flo
 
 

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from data.errors import InputError
+from core.errors import InputError
 from data.flow import read_sintel_pair, read_sintel_sequence, write_flo
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from data.errors import InputError
+from core.errors import InputError
 from data.flow import sample_bilinear, synthetic_sequence
 
 

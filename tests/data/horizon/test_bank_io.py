@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
+from core.raycast import virtual_horizon
 from data.horizon.bank_io import FilterBank
 from data.world.dem import generate_archipelago
-from data.world.raycast import virtual_horizon
 from models.horizon.filter_bank import BankSettings, bank_grid, build_filter_bank
 
 SETTINGS = BankSettings(spacing=25, bins=128, max_range=500, neighbourhood=50, sample_step=25, sample_sigma=20,

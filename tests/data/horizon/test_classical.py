@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 import torch
 
-from data.errors import InputError
+from core.cylinder import column_azimuths, s_curve, tangent_to_row
+from core.errors import InputError
+from core.raycast import VirtualHorizon
 from data.horizon.classical import ClassicalHorizon, hough_tilt, projection_cost
 from data.world.dem import generate_archipelago
-from data.world.raycast import VirtualHorizon
 from data.world.render import Appearance, render_panorama
-from models.horizon.cylinder import column_azimuths, s_curve, tangent_to_row
 
 
 def test_hough_recovers_tilt_of_an_exact_s_curve():

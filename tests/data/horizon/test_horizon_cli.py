@@ -9,8 +9,8 @@ import pytest
 import torch
 
 import infer
+from core.raycast import VirtualHorizon
 from data.world.dem import Dem, generate_archipelago, save_dem
-from data.world.raycast import VirtualHorizon
 from data.world.render import Appearance, render_panorama
 
 

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from data.errors import InputError
+from core.errors import InputError
 from data.horizon.dataset import DatasetSettings, random_trajectories, read_split, write_dataset
 from data.world.dem import generate_archipelago, load_dem
 

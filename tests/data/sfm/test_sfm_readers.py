@@ -1,7 +1,7 @@
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from data.sfm.bal import read_bal
 from data.sfm.bundler import read_bundler
 from data.sfm.reconstruction import Reconstruction, undistort_radial

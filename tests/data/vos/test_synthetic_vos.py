@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from data.vos.synthetic import synthetic_video, synthetic_video_seeds
 
 

@@ -8,7 +8,7 @@ import pytest
 import torch
 from PIL import Image
 
-from data.errors import InputError
+from core.errors import InputError
 from data.vos.davis import davis_sequences
 from data.vos.io import davis_palette, read_frame, read_mask, write_mask
 from data.vos.ytvos import first_frames, ytvos_sequences

@@ -5,7 +5,7 @@ import pytest
 import rasterio
 from rasterio.transform import Affine
 
-from data.errors import InputError
+from core.errors import InputError
 from data.world.dem import Dem, flood, generate_archipelago, load_dem, save_dem
 
 

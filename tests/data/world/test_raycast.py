@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
+from core.raycast import VirtualHorizon, curvature_drop, effective_radius, virtual_horizon
 from data.world.dem import Dem, generate_archipelago
-from data.world.raycast import VirtualHorizon, curvature_drop, effective_radius, virtual_horizon
 
 
 def _brute_force(dem: Dem, xy, h_c, bins, max_range, step, k=0.13):
@@ -77,7 +77,7 @@ def test_matches_brute_force_loop(small_dem):
 
 
 def test_curvature_drop_and_dip_match_the_formula():
-    # REFERENCE 4.2 table: drop with k = 0.13 and without refraction.
+    # Thesis ch. 4.2: drop with k = 0.13 and without refraction.
     for distance, with_k, without in ((1000, 0.07, 0.08), (5000, 1.71, 1.96), (10000, 6.83, 7.85)):
         assert curvature_drop(distance) == pytest.approx(with_k, abs=0.006)
         assert curvature_drop(distance, k=0.0) == pytest.approx(without, abs=0.006)
@@ -92,7 +92,7 @@ def test_curvature_drop_and_dip_match_the_formula():
     expected = (30.0 - 2.0 - distance**2 / (2 * 6371e3 / 0.87)) / distance
     assert out.horizon[0, 0].item() == pytest.approx(expected, abs=1e-9)
     assert out.horizon_distance[0, 0].item() == pytest.approx(distance)
-    # Other azimuths see open sea: the sea horizon at the dip angle (REFERENCE: 0.042 deg at 2 m).
+    # Other azimuths see open sea: the sea horizon at the dip angle (0.042 deg at 2 m: atan(sqrt(2 h / R_eff))).
     dip = math.degrees(math.atan(-out.horizon[0, 2].item()))
     assert dip == pytest.approx(0.042, abs=5e-4)
     assert out.water[0, 2].item() == out.horizon[0, 2].item()

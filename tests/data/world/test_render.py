@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import torch
 
-from data.errors import InputError
+from core.cylinder import column_azimuths, level_to_tilted, tangent_to_row
+from core.errors import InputError
+from core.raycast import VirtualHorizon
 from data.world.dem import generate_archipelago
-from data.world.raycast import VirtualHorizon
 from data.world.render import Appearance, render_panorama
-from models.horizon.cylinder import column_azimuths, level_to_tilted, tangent_to_row
 
 
 @pytest.fixture(scope="module")

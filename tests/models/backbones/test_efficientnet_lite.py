@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from models.backbones import EfficientNetLiteBackbone, efficientnet_lite
 from models.backbones.efficientnet_lite import VARIANTS, EfficientNetLite, scaled_stages
 

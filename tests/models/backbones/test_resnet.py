@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from models.backbones import EfficientNetLiteBackbone, ResNetBackbone, build_backbone
 
 

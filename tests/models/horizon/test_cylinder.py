@@ -4,7 +4,7 @@ import math
 
 import torch
 
-from models.horizon.cylinder import (
+from core.cylinder import (
     column_azimuths,
     level_to_tilted,
     row_tangents,

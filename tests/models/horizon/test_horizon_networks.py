@@ -10,10 +10,11 @@ import torch
 from lightning.pytorch.cli import LightningCLI
 
 import infer
+from core.cylinder import row_tangents
 from data.horizon.datamodule import HorizonDataModule
-from export.horizon_onnx import export_horizon, load_network
+from export.horizon_onnx import export_horizon
+from models.builders import horizon_finder
 from models.horizon.column_pool import ColumnPool, row_height_grid, row_tangent_grid
-from models.horizon.cylinder import row_tangents
 from models.horizon.finder import HorizonFinder, fourier_pool, sincos_to_angles
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 from models.horizon.segmenter import HorizonSegmenter, PanoramaSegmenter
@@ -118,7 +119,7 @@ def test_infer_horizon_with_checkpoints_and_onnx(trained, tiny_data, tmp_path, c
     saved = np.load(tmp_path / "p.npz")
     assert saved["horizon"].shape == (256,) and abs(math.degrees(saved["pitch"]) - from_ckpt["pitch_deg"]) < 1e-9
     onnx_path = tmp_path / "finder.onnx"
-    export_horizon("finder", load_network("finder", finder), onnx_path, height=32, width=256)
+    export_horizon("finder", horizon_finder(ckpt=finder), onnx_path, height=32, width=256)
     assert infer.main([*args, "--finder", str(onnx_path), "--segmenter", str(segmenter)]) == 0
     from_onnx = json.loads(capsys.readouterr().out)
     assert abs(from_onnx["pitch_deg"] - from_ckpt["pitch_deg"]) < 1e-3

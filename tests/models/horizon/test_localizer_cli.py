@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
+from core.cylinder import column_azimuths, interp_profile
+from core.raycast import VirtualHorizon, virtual_horizon
 from data.world.dem import generate_archipelago, save_dem
-from data.world.raycast import VirtualHorizon, virtual_horizon
 from data.world.render import render_panorama
 from infer import main
-from models.horizon.cylinder import column_azimuths, interp_profile
 
 
 @pytest.fixture(scope="module")

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import torch
 
-from data.errors import InputError
+from core.cylinder import column_azimuths, interp_profile
+from core.errors import InputError
+from core.raycast import virtual_horizon
 from data.horizon.bank_io import FilterBank
 from data.world.dem import generate_archipelago
-from data.world.raycast import virtual_horizon
-from models.horizon.cylinder import column_azimuths, interp_profile
 from models.horizon.filter_bank import BankSettings, build_filter_bank, profile_normalize
 from models.horizon.localizer import locate, resample_profile, subgrid_refine
 from models.horizon.matching import band_psr

@@ -4,8 +4,8 @@ import numpy as np
 import torch
 
 from export.localization_onnx import example_inputs, export_matcher
-from export.onnx import onnx_session, run_onnx
 from models.horizon.matching import BandPsr
+from models.onnx_graph import onnx_session, run_onnx
 
 
 def test_matcher_onnx_matches_pytorch(tmp_path):

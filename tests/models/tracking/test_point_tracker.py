@@ -7,7 +7,7 @@ import pytest
 import torch
 from kornia.geometry.transform import pyrdown
 
-from data.errors import InputError
+from core.errors import InputError
 from models.tracking import PointTracker, extract_patches, good_features_to_track
 from models.tracking.point_tracker import image_pyramid
 

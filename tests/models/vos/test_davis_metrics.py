@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from models.vos.metrics import (
     boundary_f,
     boundary_radius,

@@ -4,7 +4,7 @@ import pytest
 import torch
 
 import train
-from data.errors import InputError
+from core.errors import InputError
 from data.vos.datamodule import SyntheticTrainingSamples
 from models.vos.lit import FRTMSegmentation
 
@@ -93,4 +93,4 @@ def test_frozen_pretrained_backbone_trains_only_the_decoder() -> None:
     tracker = model.make_tracker(channels=8, num_aug=2, memory_size=4, init_schedule=[2], update_schedule=[2])
     frames = (batch["test_images"][0] * 255).to(torch.uint8)
     labels = list(tracker.segment(frames, {0: batch["test_masks"][0, 0].long()}))
-    assert tracker.feature_norm == "instance_l2" and len(labels) == 2 and labels[0].shape == (48, 64)
+    assert tracker.settings.feature_norm == "instance_l2" and len(labels) == 2 and labels[0].shape == (48, 64)

@@ -3,14 +3,15 @@
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from data.vos.synthetic import synthetic_video
-from export.onnx import run_onnx
-from export.vos_onnx import OnnxFRTMTracker, apply_filter_per_object, export_frtm
+from export.vos_onnx import apply_filter_per_object, export_frtm
 from models.backbones import ResNetBackbone
 from models.vos.decoder import SegmentationDecoder
+from models.vos.onnx_tracker import OnnxFRTMTracker
 from models.vos.target_model import apply_filter
 from models.vos.tracker import FRTMTracker
+from models.vos.tracker_settings import FRTMSettings
 
 
 @pytest.fixture(scope="module")
@@ -18,8 +19,9 @@ def exported(tmp_path_factory):
     torch.manual_seed(0)
     backbone = ResNetBackbone("resnet18")
     decoder = SegmentationDecoder(backbone.channels, mdim=8).eval()
-    tracker = FRTMTracker(backbone, decoder, channels=8, num_aug=3, memory_size=8, init_schedule=(3, 5),
-                          update_schedule=(5,), update_every=2).eval()
+    settings = FRTMSettings(channels=8, num_aug=3, memory_size=8, init_schedule=(3, 5), update_schedule=(5,),
+                            update_every=2)
+    tracker = FRTMTracker(backbone, decoder, settings).eval()
     out = tmp_path_factory.mktemp("frtm_onnx")
     export_frtm(tracker, out, 64, 96)
     return tracker, out
@@ -36,11 +38,11 @@ def test_graph_parity(exported) -> None:
     g = torch.Generator().manual_seed(1)
     image = torch.rand(1, 3, 80, 112, generator=g)  # another size than the export example
     wp, wf = torch.randn(3, 8, 256, generator=g) / 16, torch.randn(3, 8, 3, 3, generator=g) / 8
-    logits, z = run_onnx(ox.sessions["frame"], image, wp, wf)
+    logits, z = ox.graphs["frame"](image, wp, wf)
     tracker.wp, tracker.wf = wp, wf
     ref_logits, ref_z = tracker.segment_frame(image[0])
-    torch.testing.assert_close(torch.from_numpy(z), ref_z, rtol=1e-4, atol=1e-4)
-    torch.testing.assert_close(torch.from_numpy(logits), ref_logits, rtol=1e-4, atol=1e-4)
+    torch.testing.assert_close(z, ref_z, rtol=1e-4, atol=1e-4)
+    torch.testing.assert_close(logits, ref_logits, rtol=1e-4, atol=1e-4)
     x = torch.rand(1, 4, 256, 5, 7, generator=g)
     y = (torch.rand(1, 4, 80, 112, generator=g) > 0.6).float()
     v, gamma = torch.ones_like(y), torch.full((1, 4), 0.25)

@@ -4,12 +4,13 @@ late objects, timings and input errors."""
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from data.vos.synthetic import synthetic_video
 from models.backbones import ResNetBackbone
 from models.vos.decoder import SegmentationDecoder
 from models.vos.metrics import evaluate_sequence
 from models.vos.tracker import COMPONENTS, FRTMTracker
+from models.vos.tracker_settings import FRTMSettings
 
 
 @pytest.fixture(scope="module")
@@ -21,7 +22,7 @@ def backbone() -> ResNetBackbone:
 def small_tracker(backbone, decoder=None, **kw) -> FRTMTracker:
     args = {"channels": 16, "num_aug": 3, "memory_size": 12, "init_schedule": (3, 5), "update_schedule": (5,),
             "update_every": 2}
-    return FRTMTracker(backbone, decoder, **{**args, **kw})
+    return FRTMTracker(backbone, decoder, FRTMSettings(**{**args, **kw}))
 
 
 def test_target_model_tracks_slow_object_better_than_copying(backbone) -> None:

@@ -4,7 +4,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from data.errors import InputError
+from core.errors import InputError
 from models.vos.target_features import TargetFeatures, normalize_features
 
 

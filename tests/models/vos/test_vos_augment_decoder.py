@@ -4,7 +4,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from data.errors import InputError
+from core.errors import InputError
 from models.backbones import ResNetBackbone
 from models.vos.augment import SCALES, first_frame_augment, inpaint_target
 from models.vos.decoder import SegmentationDecoder, bicubic_upsample2x

@@ -3,8 +3,10 @@
 import pytest
 import torch
 
-from bench.vos import load_model, parse_args, run_method, synthetic_settings
+from bench.vos import parse_args, run_method
 from data.vos.datamodule import synthetic_videos
+from models.builders import frtm_system
+from models.vos.inference import synthetic_test_settings
 from models.vos.metrics import evaluate_sequence
 
 
@@ -14,7 +16,7 @@ def test_first_frame_copy_and_target_model_only() -> None:
     copy = run_method(None, "first_frame_copy", videos)
     ref = evaluate_sequence(labels[:1].expand_as(labels), labels)
     assert abs(copy["jf"] - sum(o["J&F-Mean"] for o in ref.values()) / len(ref)) < 1e-12
-    model = load_model(None, mdim=8, tracker={"channels": 8, "num_aug": 2, "memory_size": 6, "init_schedule": [2],
+    model = frtm_system(mdim=8, tracker={"channels": 8, "num_aug": 2, "memory_size": 6, "init_schedule": [2],
                                               "update_schedule": [2]})
     tm = run_method(model, "target_model_only", videos)
     assert set(tm) == {"jf", "j", "f", "fps", "ms_per_frame", "per_sequence"} and tm["fps"] > 0
@@ -26,17 +28,17 @@ def test_first_frame_copy_and_target_model_only() -> None:
 
 def test_synthetic_settings_follow_the_checkpoint_data(tmp_path) -> None:
     ckpt = tmp_path / "fake.ckpt"
-    torch.save({"datamodule_hyper_parameters": {"height": 64, "width": 96, "eval_objects": 3, "n_distractors": 0,
-                                                "object_scale": [0.25, 0.45]}}, ckpt)
-    got = synthetic_settings(parse_args(["--ckpt", str(ckpt), "--synthetic", "--width", "112"]))
-    assert got == {"height": 64, "width": 112, "objects": 3, "distractors": 0, "object_scale": (0.25, 0.45)}
-    default = synthetic_settings(parse_args(["--synthetic"]))
-    assert default == {"height": 96, "width": 160, "objects": 2, "distractors": 1, "object_scale": (0.15, 0.3)}
+    data = {"height": 64, "width": 96, "eval_objects": 3, "n_distractors": 0, "object_scale": [0.25, 0.45]}
+    torch.save({"state_dict": {}, "datamodule_hyper_parameters": data}, ckpt)
+    got = synthetic_test_settings(ckpt, width=112, height=None)
+    assert got == {"height": 64, "width": 112, "n_objects": 3, "n_distractors": 0, "object_scale": (0.25, 0.45)}
+    default = synthetic_test_settings(None)
+    assert default == {"height": 96, "width": 160, "n_objects": 2, "n_distractors": 1, "object_scale": (0.15, 0.3)}
 
 
 def test_tracker_overrides_and_method_checks() -> None:
     from bench.vos import parse_tracker, run
-    from data.errors import InputError
+    from core.errors import InputError
 
     assert parse_tracker(["channels=32", "update_schedule=[5, 5]", "label_stride=2"]) == {
         "channels": 32, "update_schedule": [5, 5], "label_stride": 2}
@@ -48,15 +50,15 @@ def test_tracker_overrides_and_method_checks() -> None:
 
 
 def test_untrained_pretrained_system_and_speed_side_by_side(tmp_path) -> None:
-    from bench.vos import model_from_config, speed
+    from bench.vos import speed
 
-    model = load_model(None, backbone="efficientnet_lite0", weights="imagenet", feature_layer="layer2",
+    model = frtm_system(backbone="efficientnet_lite0", weights="imagenet", feature_layer="layer2",
                        feature_norm="instance_l2", mdim=8, tracker={"channels": 8, "num_aug": 2, "memory_size": 4,
                                                                     "init_schedule": [2], "update_schedule": [2]})
-    assert model.backbone.channels["layer2"] == 40 and model.make_tracker().feature_norm == "instance_l2"
+    assert model.backbone.channels["layer2"] == 40 and model.make_tracker().settings.feature_norm == "instance_l2"
     config = tmp_path / "tiny.yaml"
     config.write_text("model:\n  class_path: models.vos.lit.FRTMSegmentation\n  init_args:\n    mdim: 8\n    tracker:"
                       " {channels: 8, num_aug: 2, memory_size: 4, init_schedule: [2], update_schedule: [2]}\n")
-    out = speed({"lite0": model, "r18": model_from_config(str(config))}, n_frames=3, repeats=1)
+    out = speed({"lite0": model, "r18": frtm_system(config=config)}, n_frames=3, repeats=1)
     assert set(out) == {"lite0", "r18"} and set(out["lite0"]) == {"240p", "480p"}
     assert all(out[m][r]["fps"] > 0 and out[m][r]["cpu_s_per_frame"] > 0 for m in out for r in out[m])

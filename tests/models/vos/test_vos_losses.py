@@ -5,7 +5,7 @@ import math
 import pytest
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from models.vos.losses import segmentation_loss, soft_iou_loss
 
 

@@ -6,7 +6,7 @@ import time
 
 import torch
 
-from data.errors import InputError
+from core.errors import InputError
 from data.sfm.reconstruction import Reconstruction, scene_radius
 from models.geometry.methods import FIXED_VIEWS, METHODS
 from models.geometry.projection import Triangulation

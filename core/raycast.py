@@ -18,13 +18,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import torch
 from torch import nn
 
-from data.errors import InputError
-from data.world.dem import Dem
+from core.errors import InputError
 
 EARTH_RADIUS_M = 6371e3
 REFRACTION_K = 0.13
@@ -158,17 +158,30 @@ def virtual_horizon(
     return HorizonProfiles(horizon_t, torch.minimum(water, horizon_t), horizon_dist, shore)
 
 
+class HeightMap(Protocol):
+    """A north-up height grid: ``z`` (rows, cols) metres, its north-west corner at (``x0``, ``y0``) map metres,
+    rows running south, square cells of ``cell`` metres (``data.world.dem.Dem`` is one)."""
+
+    z: np.ndarray
+    x0: float
+    y0: float
+    cell: float
+
+    def check_positions(self, xy: np.ndarray, name: str = "position") -> None:
+        """Raise ``InputError`` when a position (..., 2) lies outside the grid."""
+
+
 class VirtualHorizon(nn.Module):
     """``virtual_horizon`` over a fixed DEM held as a buffer (moves with ``.to(device)``).
 
     Args:
-        dem: the DEM.
+        dem: the height grid (a ``data.world.dem.Dem``).
         bins, max_range, step, k, earth_radius, shore_height: as in ``virtual_horizon``.
     """
 
     def __init__(
         self,
-        dem: Dem,
+        dem: HeightMap,
         bins: int = 2048,
         max_range: float = 8000.0,
         step: float | None = None,

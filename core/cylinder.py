@@ -20,7 +20,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from data.errors import InputError
+from core.errors import InputError
 
 
 def panorama_focal(width: int) -> float:

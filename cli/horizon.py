@@ -1,0 +1,53 @@
+"""``infer.py horizon``: the horizon networks on one panorama (thesis ch. 4.3): pitch and roll, levelling, the
+horizon and water-line profiles."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+NAME = "horizon"
+HELP = ("Horizon networks on one panorama: HorizonFinder pitch/roll, levelling, HorizonSegmenter horizon and "
+        "water profiles.")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--image", type=Path, required=True, help="tilted 360-degree panorama (column 0 = forward)")
+    p.add_argument("--finder", type=Path, required=True, help="HorizonFinder checkpoint (.ckpt) or ONNX graph")
+    p.add_argument("--segmenter", type=Path, required=True, help="HorizonSegmenter checkpoint or ONNX graph")
+    p.add_argument("--input-width", type=int, default=512, metavar="PX",
+                   help="network input width (the panorama is resized; default 512)")
+    p.add_argument("--out", type=Path, metavar="FILE.npz", help="write pitch, roll and the per-column profiles")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def model_source(path: Path) -> dict[str, Path]:
+    """``{"onnx": path}`` for an ``.onnx`` file, else ``{"ckpt": path}`` (the builders' keyword)."""
+    return {"onnx": path} if path.suffix.lower() == ".onnx" else {"ckpt": path}
+
+
+def run(args: argparse.Namespace) -> int:
+    import math
+
+    import numpy as np
+    import torch
+
+    from cli.report import print_report
+    from core.cylinder import tangent_to_row
+    from data.horizon.datamodule import read_full_panorama
+    from models.builders import horizon_finder, horizon_segmenter
+    from models.horizon.localizer import panorama_profiles
+
+    image = read_full_panorama(args.image)
+    finder = horizon_finder(**model_source(args.finder))
+    segmenter = horizon_segmenter(**model_source(args.segmenter))
+    profiles, pitch, roll = panorama_profiles(image, finder, segmenter, args.input_width)
+    horizon, water = profiles[0].numpy().astype(np.float64)
+    height, width = image.shape[-2:]
+    report = {"pitch_deg": math.degrees(pitch.item()), "roll_deg": math.degrees(roll.item()),
+              "horizon_row_median": float(np.median(tangent_to_row(torch.from_numpy(horizon), height, width))),
+              "land_columns": int(np.sum(horizon - water > 2 * math.pi / width))}
+    if args.out:
+        np.savez(args.out, pitch=pitch.item(), roll=roll.item(), horizon=horizon, water=water)
+    print_report(report, args.json)
+    return 0

@@ -1,0 +1,49 @@
+"""``infer.py segment``: FRTM video object segmentation of a folder of frames or a DAVIS split (thesis ch. 5)."""
+
+from __future__ import annotations
+
+import argparse
+
+from core.errors import InputError
+
+NAME = "segment"
+HELP = "Segment objects through a video from a first-frame mask (FRTM), or a DAVIS split with J&F."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    src = p.add_argument_group("input: one video folder or a whole DAVIS split")
+    src.add_argument("--video", help="folder of frames (sorted by name)")
+    src.add_argument("--mask", help="first-frame mask PNG (palette ids or binary gray)")
+    src.add_argument("--davis", help="DAVIS root; segments and scores every sequence of --split")
+    src.add_argument("--split", default="val", help="DAVIS ImageSets split (default val)")
+    src.add_argument("--resolution", default="480p", help="DAVIS resolution folder (default 480p)")
+    src.add_argument("--max-frames", type=int, help="DAVIS: cut sequences to this many frames")
+    model = p.add_argument_group("model: exactly one")
+    model.add_argument("--ckpt", help="FRTMSegmentation checkpoint from train.py")
+    model.add_argument("--onnx", help="folder written by `python -m export.vos_onnx`")
+    p.add_argument("--out", required=True, help="output folder for palette PNG masks")
+    p.add_argument("--overlay", help="also write an overlay video (e.g. out.mp4)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from models.builders import frtm_tracker
+    from models.vos.inference import check_first_frame, segment_davis, segment_folder
+
+    if args.davis is None and (args.video is None or args.mask is None):
+        raise InputError("give --video DIR --mask FIRST.png, or --davis ROOT --split NAME")
+    if (args.ckpt is None) == (args.onnx is None):
+        raise InputError("give exactly one of --ckpt CKPT or --onnx DIR")
+    if args.davis is None:
+        from data.vos.io import list_frames
+
+        check_first_frame(list_frames(args.video), args.mask)  # bad input fails before the model loads
+        tracker = frtm_tracker(ckpt=args.ckpt, onnx=args.onnx)
+        n, seconds = segment_folder(tracker, args.video, args.mask, args.out, args.overlay)
+        print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS); masks in {args.out}")
+        return 0
+    tracker = frtm_tracker(ckpt=args.ckpt, onnx=args.onnx)
+    result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames)
+    print(json.dumps({"J&F": result["J&F-Mean"], "J": result["J-Mean"], "F": result["F-Mean"], "FPS": fps}))
+    return 0

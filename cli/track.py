@@ -1,0 +1,54 @@
+"""``infer.py track``: many points through a gray video with correlation filters or KLT (thesis ch. 3)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+NAME = "track"
+HELP = "Track points through gray frames with correlation filters (or KLT) and save the tracks."
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--frames", required=True, help="folder of frames (sorted by name) or a glob like 'clip/*.png'")
+    start = p.add_mutually_exclusive_group(required=True)
+    start.add_argument("--points", help="start points in the first frame: .npy/.npz (P, 2) or text 'x y' lines")
+    start.add_argument("--detect", type=int, help="detect this many good features to track in the first frame")
+    p.add_argument("--method", default="ccot", choices=("ccot", "ccot_ff", "mosse", "klt"),
+                   help="DCF variant, or klt = OpenCV pyramidal Lucas-Kanade (default: ccot)")
+    p.add_argument("--out", required=True, help="output .npz with tracks (T, P, 2), lost (T, P), psr (T, P)")
+    p.add_argument("--video", help="also write an overlay video (.mp4)")
+    p.add_argument("--device", default="cpu", help="torch device for the DCF methods (default: cpu)")
+    p.add_argument("--threads", type=int, default=1,
+                   help="CPU threads for torch and OpenCV (default 1: fastest for many small filters)")
+    p.add_argument("--compile", action="store_true",
+                   help="run the DCF step through torch.compile: faster per frame, about a minute to compile")
+
+
+def run(args: argparse.Namespace) -> int:
+    import time
+
+    import numpy as np
+
+    from core.threads import cpu_threads
+    from data.flow.frames import read_frames, read_points
+    from models.tracking.overlay import write_overlay_video
+    from models.tracking.run import track_points
+
+    frames, paths = read_frames(args.frames)
+    points = read_points(args.points) if args.points else None
+    start = time.perf_counter()
+    with cpu_threads(args.threads):
+        result = track_points(frames, points, args.detect, args.method, args.device, progress=True,
+                              compile=args.compile)
+    seconds = time.perf_counter() - start
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    np.savez(args.out, method=args.method, frames=np.array([str(p) for p in paths]), **result)
+    if args.video:
+        write_overlay_video(args.video, frames, result["tracks"], result["lost"])
+    n_frames, n_points = result["lost"].shape
+    lost = int(result["lost"][-1].sum())
+    print(f"{args.method}: {n_points} points through {n_frames} frames in {seconds:.1f} s "
+          f"({n_points * max(n_frames - 1, 1) / seconds:.0f} point-frames/s), {lost} lost at the end; "
+          f"wrote {args.out}" + (f" and {args.video}" if args.video else ""))
+    return 0
