@@ -18,7 +18,7 @@ import torch
 from core.errors import InputError
 from export.onnx import export_onnx
 from models.horizon.matching import BandPsr
-from models.onnx_graph import onnx_session, run_onnx
+from models.onnx_graph import OnnxGraph
 
 
 def example_inputs(bins: int, frequencies: int, locations: int = 64, batch: int = 2, seed: int = 0):
@@ -48,7 +48,7 @@ def parity(path: str | Path, model: BandPsr, inputs: tuple[torch.Tensor, ...]) -
     """Largest difference of the ONNX PSR from PyTorch on ``inputs``, relative to the largest PSR."""
     with torch.no_grad():
         reference = model(*inputs)[0].numpy()
-    onnx_psr = run_onnx(onnx_session(path), *inputs)[0]
+    onnx_psr = OnnxGraph(path)(*inputs)[0].numpy()
     return float(np.max(np.abs(onnx_psr - reference)) / np.max(np.abs(reference)))
 
 

@@ -1,5 +1,5 @@
-"""Reading Lightning checkpoints with errors that name the file: the one place that calls ``torch.load`` and
-``load_from_checkpoint`` (``models.builders`` builds every deployable model on it)."""
+"""Reading Lightning checkpoints with errors that name the file: the one place that opens a checkpoint
+(``torch.load``, ``load_from_checkpoint``); ``models.builders`` builds every deployable model on it."""
 
 from __future__ import annotations
 
