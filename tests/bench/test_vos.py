@@ -1,12 +1,11 @@
-"""bench/vos.py: the first-frame-copy baseline and the JSON layout on a tiny synthetic video set."""
+"""bench/vos.py: the first-frame-copy baseline and the JSON layout on a tiny synthetic video set, tracker
+overrides and the speed table."""
 
 import pytest
-import torch
 
 from bench.vos import parse_args, run_method
 from data.vos.datamodule import synthetic_videos
 from models.builders import frtm_system
-from models.vos.inference import synthetic_test_settings
 from models.vos.metrics import evaluate_sequence
 
 
@@ -24,16 +23,6 @@ def test_first_frame_copy_and_target_model_only() -> None:
     obj = tm["per_sequence"][videos[0][0]]["1"]
     assert set(obj) == {"jf", "j", "f"} and abs(obj["jf"] - (obj["j"] + obj["f"]) / 2) < 1e-12
     assert parse_args(["--davis", "x", "--split", "val"]).resolution == "480p"
-
-
-def test_synthetic_settings_follow_the_checkpoint_data(tmp_path) -> None:
-    ckpt = tmp_path / "fake.ckpt"
-    data = {"height": 64, "width": 96, "eval_objects": 3, "n_distractors": 0, "object_scale": [0.25, 0.45]}
-    torch.save({"state_dict": {}, "datamodule_hyper_parameters": data}, ckpt)
-    got = synthetic_test_settings(ckpt, width=112, height=None)
-    assert got == {"height": 64, "width": 112, "n_objects": 3, "n_distractors": 0, "object_scale": (0.25, 0.45)}
-    default = synthetic_test_settings(None)
-    assert default == {"height": 96, "width": 160, "n_objects": 2, "n_distractors": 1, "object_scale": (0.15, 0.3)}
 
 
 def test_tracker_overrides_and_method_checks() -> None:

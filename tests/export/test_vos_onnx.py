@@ -1,9 +1,9 @@
-"""FRTM ONNX graphs: onnxruntime parity per graph (rtol 1e-4) and masks of the ONNX tracker vs PyTorch."""
+"""FRTM ONNX export: the per-object filter of the graphs, onnxruntime parity per graph (rtol 1e-4), and masks of
+the onnxruntime tracker (models/vos/onnx_tracker.py) on the export vs PyTorch."""
 
 import pytest
 import torch
 
-from core.errors import InputError
 from data.vos.synthetic import synthetic_video
 from export.vos_onnx import apply_filter_per_object, export_frtm
 from models.backbones import ResNetBackbone
@@ -61,8 +61,3 @@ def test_onnx_tracker_reproduces_pytorch_masks(exported) -> None:
         for k in (1, 2):
             union = ((a == k) | (b == k)).sum()
             assert union == 0 or ((a == k) & (b == k)).sum() / union >= 0.99
-
-
-def test_missing_export(tmp_path) -> None:
-    with pytest.raises(InputError, match="not an FRTM ONNX export"):
-        OnnxFRTMTracker(tmp_path)

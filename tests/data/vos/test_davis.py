@@ -1,6 +1,5 @@
-"""DAVIS / YouTube-VOS readers and mask I/O on crafted layouts and on ../shared/data/davis2016."""
+"""DAVIS reader on crafted 2016 / 2017 layouts and on ../shared/data/davis2016."""
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -10,8 +9,7 @@ from PIL import Image
 
 from core.errors import InputError
 from data.vos.davis import davis_sequences
-from data.vos.io import davis_palette, read_frame, read_mask, write_mask
-from data.vos.ytvos import first_frames, ytvos_sequences
+from data.vos.io import write_mask
 
 
 def make_davis(root: Path, res: str, split_lines: list[str], gray: bool) -> None:
@@ -32,15 +30,6 @@ def make_davis(root: Path, res: str, split_lines: list[str], gray: bool) -> None
                 write_mask(root / "Annotations" / res / seq / f"{t:05d}.png", torch.from_numpy(labels))
     (root / "ImageSets" / res).mkdir(parents=True)
     (root / "ImageSets" / res / "val.txt").write_text("\n".join(split_lines) + "\n")
-
-
-def test_palette_roundtrip_and_davis_colours(tmp_path: Path) -> None:
-    labels = torch.tensor([[0, 1, 2], [3, 255, 0]])
-    write_mask(tmp_path / "m.png", labels)
-    image = Image.open(tmp_path / "m.png")
-    assert image.mode == "P" and image.getpalette()[3:9] == [128, 0, 0, 0, 128, 0]
-    assert torch.equal(read_mask(tmp_path / "m.png"), labels)
-    assert davis_palette()[765:768] == [224, 224, 192]  # void colour of index 255
 
 
 def test_davis_2017_layout_names_split(tmp_path: Path) -> None:
@@ -70,30 +59,9 @@ def test_reader_errors(tmp_path: Path) -> None:
     (tmp_path / "Annotations/480p/a/00000.png").unlink()
     with pytest.raises(InputError, match="first-frame annotation"):
         davis_sequences(tmp_path, "val", "480p")
-    (tmp_path / "bad.png").write_bytes(b"not a png")
-    with pytest.raises(InputError, match="cannot be read"):
-        read_frame(tmp_path / "bad.png")
-    with pytest.raises(InputError, match="does not exist"):
-        read_mask(tmp_path / "missing.png")
     write_mask(tmp_path / "Annotations/480p/b/00001.png", torch.zeros(5, 8, dtype=torch.long))
     with pytest.raises(InputError, match="00001.png is"):
         davis_sequences(tmp_path, "val", "480p", names=["b"])[0].load()
-
-
-def test_ytvos_layout_sparse_annotations(tmp_path: Path) -> None:
-    base = tmp_path / "train"
-    (base / "JPEGImages/v1").mkdir(parents=True)
-    (base / "Annotations/v1").mkdir(parents=True)
-    for t in range(0, 15, 5):
-        Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(base / f"JPEGImages/v1/{t:05d}.jpg")
-    Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(base / "JPEGImages/v1/00001.jpg")
-    write_mask(base / "Annotations/v1/00000.png", torch.ones(4, 4, dtype=torch.long))
-    (base / "meta.json").write_text(json.dumps({"videos": {"v1": {"objects": {"1": {"frames": ["00000"]}}}}}))
-    seq = ytvos_sequences(tmp_path, "train")[0]
-    assert [m is not None for m in seq.masks] == [True, False, False, False]
-    _, labels = seq.load()
-    assert labels[0].eq(1).all() and labels[1].eq(-1).all()
-    assert first_frames(tmp_path, "train") == {"v1": {1: "00000"}}
 
 
 def test_shared_davis2016_240p(shared_data: Path) -> None:

@@ -1,0 +1,24 @@
+"""``infer.py build-bank``: a small bank with the requested settings, and a missing DEM in one line."""
+
+from data.horizon.bank_io import FilterBank
+from data.world.dem import generate_archipelago, save_dem
+from infer import main
+
+
+def test_build_bank_writes_the_requested_bank(tmp_path, capsys):
+    dem = generate_archipelago(size_m=600, cell=10, seed=5, feature_scale_m=300, land_fraction=0.2, forest_height=0)
+    save_dem(tmp_path / "dem.tif", dem)
+    assert main(["build-bank", "--dem", str(tmp_path / "dem.tif"), "--spacing", "50", "--bins", "64",
+                 "--max-range", "300", "--neighbourhood", "0", "--bounds", "150", "150", "450", "450", "--float32",
+                 "--out", str(tmp_path / "bank")]) == 0
+    assert capsys.readouterr().out.startswith(f"wrote {tmp_path / 'bank'}: ")
+    bank = FilterBank(tmp_path / "bank")
+    assert bank.settings["spacing"] == 50 and bank.settings["bins"] == 64 and bank.meta["storage_dtype"] == "float32"
+    xy = bank.locations()
+    assert len(xy) > 0 and (dem.height_at(xy) <= 0).all()
+    assert ((xy >= 150) & (xy <= 450)).all()
+
+
+def test_build_bank_missing_dem(tmp_path, capsys):
+    assert main(["build-bank", "--dem", str(tmp_path / "missing.tif"), "--spacing", "5", "--out", "b"]) == 2
+    assert "DEM file not found" in capsys.readouterr().err

@@ -1,0 +1,62 @@
+"""``infer.py horizon`` on one panorama with (tiny, untrained) HorizonFinder / HorizonSegmenter checkpoints and
+with the finder as an ONNX graph; the input width is checked."""
+
+import json
+import math
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+import infer
+from export.horizon_onnx import export_horizon
+from models.builders import horizon_finder
+from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
+
+TINY = {"backbone": "resnet18", "stage": "layer1", "heads": 2, "head_channels": 4, "channels": 8}
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    """A 32 x 256 panorama (sky over sea with a darker island band) and checkpoints of both networks."""
+    import lightning
+
+    root = tmp_path_factory.mktemp("horizon_cli")
+    rows = np.linspace(0.0, 1.0, 32)[:, None, None]
+    image = np.where(rows < 0.5, [230, 200, 170], [90, 60, 30]) * np.ones((32, 256, 3))
+    image[12:16, 40:120] = 40
+    cv2.imwrite(str(root / "pano.png"), image.astype(np.uint8))
+    torch.manual_seed(0)
+    for name, system_class in (("finder", HorizonFinderSystem), ("segmenter", HorizonSegmenterSystem)):
+        system = system_class(**TINY)
+        torch.save({"state_dict": system.state_dict(), "hyper_parameters": dict(system.hparams),
+                    "pytorch-lightning_version": lightning.__version__}, root / f"{name}.ckpt")
+    return root
+
+
+def _args(root, tmp_path, finder=None, width="256"):
+    return ["horizon", "--image", str(root / "pano.png"), "--input-width", width, "--json", "--out",
+            str(tmp_path / "p.npz"), "--finder", str(finder or root / "finder.ckpt"), "--segmenter",
+            str(root / "segmenter.ckpt")]
+
+
+def test_horizon_with_checkpoints(scene, tmp_path, capsys):
+    assert infer.main(_args(scene, tmp_path)) == 0
+    from_ckpt = json.loads(capsys.readouterr().out)
+    assert set(from_ckpt) == {"pitch_deg", "roll_deg", "horizon_row_median", "land_columns"}
+    saved = np.load(tmp_path / "p.npz")
+    assert saved["horizon"].shape == (256,) and abs(math.degrees(saved["pitch"]) - from_ckpt["pitch_deg"]) < 1e-9
+    assert infer.main(_args(scene, tmp_path, width="250")) == 2
+    assert "multiple of 32" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_horizon_with_an_onnx_finder(scene, tmp_path, capsys):
+    assert infer.main(_args(scene, tmp_path)) == 0
+    from_ckpt = json.loads(capsys.readouterr().out)
+    onnx_path = tmp_path / "finder.onnx"
+    export_horizon("finder", horizon_finder(ckpt=scene / "finder.ckpt"), onnx_path, height=32, width=256)
+    assert infer.main(_args(scene, tmp_path, finder=onnx_path)) == 0
+    from_onnx = json.loads(capsys.readouterr().out)
+    assert abs(from_onnx["pitch_deg"] - from_ckpt["pitch_deg"]) < 1e-3
