@@ -14,7 +14,6 @@ The DEM fingerprint (SHA-256 of the flooded heights and the geotransform) catche
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from collections.abc import Iterator
@@ -25,21 +24,11 @@ import numpy as np
 import torch
 
 from core.errors import InputError
-from data.world.dem import Dem
+from data.world.dem import Dem, dem_fingerprint
 
 BANK_FORMAT = "dcfvision-horizon-filter-bank"
 BANK_VERSION = 1
 STORAGE_DTYPES = ("float16", "float32")
-
-
-def dem_fingerprint(dem: Dem) -> str:
-    """SHA-256 (hex) of the DEM's flooded float32 heights, shape and geotransform."""
-    digest = hashlib.sha256()
-    z = np.ascontiguousarray(dem.z, dtype=np.float32)
-    digest.update(np.asarray(z.shape, dtype=np.int64).tobytes())
-    digest.update(np.asarray([dem.x0, dem.y0, dem.cell], dtype=np.float64).tobytes())
-    digest.update(z.tobytes())
-    return digest.hexdigest()
 
 
 @dataclass

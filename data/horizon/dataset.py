@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -26,9 +27,10 @@ import torch
 from tqdm import tqdm
 
 from core.errors import InputError
+from core.files import atomic_path, write_bytes, write_npz, write_text
 from core.raycast import VirtualHorizon
 from data.horizon.classical import ClassicalHorizon
-from data.world.dem import Dem, save_dem
+from data.world.dem import Dem, dem_fingerprint, save_dem
 from data.world.render import Appearance, render_panorama
 
 LABEL_KEYS = ("pitch", "roll", "heading", "horizon", "water", "horizon_rows", "water_rows", "quality", "ok")
@@ -132,18 +134,55 @@ def random_trajectories(dem: Dem, settings: DatasetSettings, rng: np.random.Gene
     return np.asarray(poses, dtype=np.float64)
 
 
+#: Folder of a dataset being written: one archive per finished batch, removed when the dataset is complete.
+PARTIAL_DIR = ".partial"
+
+
+def _job(dem: Dem, settings: DatasetSettings, batch: int) -> dict:
+    """What a dataset folder is being written from (a resumed job must match it)."""
+    return json.loads(json.dumps({"settings": asdict(settings), "batch": batch, "dem": dem_fingerprint(dem)}))
+
+
+def _start_or_resume(out: Path, job: dict) -> Path:
+    """The partial folder of ``out``, emptied unless it holds batches of the same ``job``."""
+    partial = out / PARTIAL_DIR
+    job_file = partial / "job.json"
+    if partial.is_dir() and not (job_file.is_file() and json.loads(job_file.read_text()) == job):
+        shutil.rmtree(partial)
+    if not partial.is_dir():
+        partial.mkdir(parents=True)
+        write_text(job_file, json.dumps(job, indent=1))
+    return partial
+
+
 def write_dataset(
     out: str | Path, dem: Dem, settings: DatasetSettings, batch: int = 4, progress: bool = True
 ) -> Path:
-    """Render, label and write a dataset (layout in the module docstring); returns ``out``."""
+    """Render, label and write a dataset (layout in the module docstring); returns ``out``.
+
+    Resumable: every finished batch of ``batch`` panoramas is kept in ``out/.partial/`` (its images, labels,
+    truth and the random generator's state after it), so a rerun after an interruption continues at the first
+    unfinished batch and writes the same files as an uninterrupted run. ``meta.json`` is written last; a folder
+    with a ``meta.json`` of the same settings is complete and returned as it is, one of other settings is an
+    ``InputError``.
+    """
     if settings.count < 1 or settings.render_bins < settings.width:
         raise InputError("count must be >= 1 and render_bins >= width")
+    if batch < 1:
+        raise InputError(f"batch must be >= 1, got {batch}")
     out = Path(out)
-    (out / "images").mkdir(parents=True, exist_ok=True)
+    meta = json.loads(json.dumps({"count": settings.count, "settings": asdict(settings), "dem": "dem.tif",
+                                  "images": "images/{index:06d}.png"}))
+    if (out / "meta.json").is_file():
+        if json.loads((out / "meta.json").read_text()).get("settings") == meta["settings"]:
+            return out
+        raise InputError(f"{out} already holds a horizon dataset with other settings; write to another folder")
+    job = _job(dem, settings, batch)
+    partial = _start_or_resume(out, job)
     rng = np.random.default_rng(settings.seed)
     generator = torch.Generator().manual_seed(settings.seed)
     poses = random_trajectories(dem, settings, rng)
-    count = len(poses)
+    count = meta["count"] = len(poses)
     degraded = rng.random(count) < settings.degraded_fraction
     gps = poses[:, :2] + rng.normal(0, settings.gps_noise_m, (count, 2))
     compass = (poses[:, 3] + rng.normal(0, math.radians(settings.compass_noise_deg), count)) % (2 * math.pi)
@@ -151,10 +190,13 @@ def write_dataset(
                               step=dem.cell / 2)
     labeller = ClassicalHorizon(VirtualHorizon(dem, bins=settings.label_bins, max_range=settings.max_range_m,
                                                step=dem.cell))
-    labels: dict[str, list[np.ndarray]] = {k: [] for k in LABEL_KEYS}
-    truth: dict[str, list[np.ndarray]] = {k: [] for k in TRUTH_KEYS}
-    appearance_log: dict[str, list[np.ndarray]] = {}
-    for start in tqdm(range(0, count, batch), desc="render + label", disable=not progress, unit="batch"):
+    starts = range(0, count, batch)
+    for start in tqdm(starts, desc="render + label", disable=not progress, unit="batch"):
+        shard = partial / f"batch_{start:06d}.npz"
+        if shard.is_file():  # finished before an interruption: continue from its generator state
+            with np.load(shard) as done:
+                generator.set_state(torch.from_numpy(done["generator_state"]))
+            continue
         index = np.arange(start, min(start + batch, count))
         clean = Appearance.sample(len(index), False, generator)
         heavy = Appearance.sample(len(index), True, generator)
@@ -165,24 +207,28 @@ def write_dataset(
                                     settings.height, appearance, generator)
         image8 = (image * 255).round().to(torch.uint8)
         for i, k in enumerate(index):
-            cv2.imwrite(str(out / "images" / f"{k:06d}.png"), image8[i].permute(1, 2, 0).numpy()[..., ::-1])
+            _, png = cv2.imencode(".png", image8[i].permute(1, 2, 0).numpy()[..., ::-1])
+            write_bytes(out / "images" / f"{k:06d}.png", png.tobytes())
         # Label what was stored (8-bit), as a real camera pipeline would.
         lab = labeller(image8.float() / 255, torch.from_numpy(gps[index]), torch.from_numpy(poses[index, 2]),
                        torch.from_numpy(compass[index]))
-        for key in LABEL_KEYS:
-            labels[key].append(getattr(lab, key).cpu().numpy())
-        for key in TRUTH_KEYS:
-            truth[key].append(getattr(gt, key).double().cpu().numpy())
-        for key in Appearance.__dataclass_fields__:
-            appearance_log.setdefault(key, []).append(getattr(appearance, key).numpy())
-    np.savez_compressed(out / "labels.npz", gps=gps, compass=compass, camera_height=poses[:, 2],
-                        **{k: np.concatenate(v) for k, v in labels.items()})
-    np.savez_compressed(out / "truth.npz", pose=poses, degraded=degraded,
-                        **{k: np.concatenate(v) for k, v in truth.items()},
-                        **{f"appearance_{k}": np.concatenate(v) for k, v in appearance_log.items()})
-    save_dem(out / "dem.tif", dem)
-    meta = {"count": count, "settings": asdict(settings), "dem": "dem.tif", "images": "images/{index:06d}.png"}
-    (out / "meta.json").write_text(json.dumps(meta, indent=2))
+        arrays = {f"label_{k}": getattr(lab, k).cpu().numpy() for k in LABEL_KEYS}
+        arrays |= {f"truth_{k}": getattr(gt, k).double().cpu().numpy() for k in TRUTH_KEYS}
+        arrays |= {f"appearance_{k}": getattr(appearance, k).numpy() for k in Appearance.__dataclass_fields__}
+        write_npz(shard, generator_state=generator.get_state().numpy(), **arrays)
+    batches = [dict(np.load(partial / f"batch_{start:06d}.npz")) for start in starts]
+
+    def joined(prefix: str) -> dict[str, np.ndarray]:
+        keys = [k for k in batches[0] if k.startswith(prefix)]
+        return {k.removeprefix(prefix): np.concatenate([b[k] for b in batches]) for k in keys}
+
+    write_npz(out / "labels.npz", gps=gps, compass=compass, camera_height=poses[:, 2], **joined("label_"))
+    appearance = {f"appearance_{k}": v for k, v in joined("appearance_").items()}
+    write_npz(out / "truth.npz", pose=poses, degraded=degraded, **joined("truth_"), **appearance)
+    with atomic_path(out / "dem.tif") as tmp:
+        save_dem(tmp, dem)
+    write_text(out / "meta.json", json.dumps(meta, indent=2))
+    shutil.rmtree(partial)
     return out
 
 

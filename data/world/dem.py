@@ -13,6 +13,7 @@ and ``crs``. Missing values (nodata, NaN) count as sea.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -282,3 +283,13 @@ def save_dem(path: str | Path, dem: Dem) -> None:
         )
     else:
         raise InputError(f"DEM {path}: unknown format {suffix!r} (use .tif, .tiff or .npz)")
+
+
+def dem_fingerprint(dem: Dem) -> str:
+    """SHA-256 (hex) of the DEM's flooded float32 heights, shape and geotransform."""
+    digest = hashlib.sha256()
+    z = np.ascontiguousarray(dem.z, dtype=np.float32)
+    digest.update(np.asarray(z.shape, dtype=np.int64).tobytes())
+    digest.update(np.asarray([dem.x0, dem.y0, dem.cell], dtype=np.float64).tobytes())
+    digest.update(z.tobytes())
+    return digest.hexdigest()

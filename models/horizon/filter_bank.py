@@ -32,8 +32,8 @@ from tqdm import tqdm
 
 from core.errors import InputError
 from core.raycast import virtual_horizon
-from data.horizon.bank_io import BankWriter, FilterBank, dem_fingerprint
-from data.world.dem import Dem
+from data.horizon.bank_io import BankWriter, FilterBank
+from data.world.dem import Dem, dem_fingerprint
 from models.dcf.mosse import Mosse, mosse_filter, mosse_train
 
 

@@ -1,0 +1,78 @@
+"""Writing output files so that a killed job never leaves a file that looks whole: everything is written to a
+temporary name beside the target and renamed over it only when complete (``os.replace`` is atomic on one file
+system). ``write_npz`` is also byte-deterministic (fixed zip timestamps), so a resumed job can be compared with
+an uninterrupted one byte for byte."""
+
+from __future__ import annotations
+
+import io
+import os
+import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+
+#: Timestamp of every member of the zip archives written here (the zip format's epoch).
+ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
+
+
+def partial_name(path: Path) -> Path:
+    """The temporary name ``path`` is written under: ``.STEM.partial.SUFFIX`` beside it (hidden, so never taken
+    for the file; the suffix kept, so writers that choose a format by suffix still work)."""
+    return path.with_name(f".{path.stem}.partial{path.suffix}")
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path to write; on leaving the block it is renamed to ``path`` (removed on an error).
+
+    An output folder that cannot be created or written is an ``InputError`` naming it.
+    """
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"cannot create the output folder {path.parent}: {err.strerror or err}") from err
+    if not os.access(path.parent, os.W_OK):
+        raise InputError(f"the output folder {path.parent} is not writable")
+    tmp = partial_name(path)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically; returns the path."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns the path."""
+    return write_bytes(path, text.encode())
+
+
+def npz_bytes(arrays: dict[str, np.ndarray], compress: bool = True) -> bytes:
+    """A ``.npz`` archive of ``arrays`` (readable by ``np.load``) whose bytes depend only on the arrays."""
+    buffer = io.BytesIO()
+    method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
+    with zipfile.ZipFile(buffer, "w", compression=method) as archive:
+        for name, value in arrays.items():
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=ZIP_EPOCH)
+            info.compress_type = method
+            archive.writestr(info, member.getvalue())
+    return buffer.getvalue()
+
+
+def write_npz(path: str | Path, compress: bool = True, **arrays: np.ndarray) -> Path:
+    """Write ``arrays`` as a ``.npz`` archive to ``path``, atomically and byte-deterministically."""
+    return write_bytes(path, npz_bytes(arrays, compress))
