@@ -38,6 +38,7 @@ def test_tracker_overrides_and_method_checks() -> None:
         run(parse_args(["--methods", "frtm,frtm2"]))
 
 
+@pytest.mark.slow
 def test_untrained_pretrained_system_and_speed_side_by_side(tmp_path) -> None:
     from bench.vos import speed
 

@@ -11,6 +11,7 @@ from models.builders import horizon_network
 SMALL = {"backbone": "resnet18", "stage": "layer2", "heads": 2, "head_channels": 8, "channels": 16}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["finder", "segmenter", "level"])
 def test_onnx_matches_pytorch(which, tmp_path):
     torch.manual_seed(0)

@@ -1,11 +1,14 @@
 """The matching step (profile in, PSR over a bank chunk out) exports to ONNX and matches PyTorch."""
 
 import numpy as np
+import pytest
 import torch
 
 from export.localization_onnx import example_inputs, export_matcher
 from models.horizon.matching import BandPsr
 from models.onnx_graph import onnx_session, run_onnx
+
+pytestmark = pytest.mark.slow  # ONNX export
 
 
 def test_matcher_onnx_matches_pytorch(tmp_path):

@@ -1,5 +1,6 @@
 """ONNX export of the pretrained EfficientNet-Lite backbone: onnxruntime matches PyTorch to 1e-4."""
 
+import pytest
 import torch
 from torch import nn
 from torch.export import Dim
@@ -7,6 +8,8 @@ from torch.export import Dim
 from export.onnx import export_onnx
 from models.backbones import EfficientNetLiteBackbone
 from models.onnx_graph import onnx_session, run_onnx
+
+pytestmark = pytest.mark.slow  # ONNX export
 
 
 class Stages(nn.Module):

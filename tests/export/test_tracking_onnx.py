@@ -9,6 +9,8 @@ from export.tracking_onnx import example_inputs, export_tracking_step
 from models.onnx_graph import onnx_session, run_onnx
 from models.tracking import PointTracker
 
+pytestmark = pytest.mark.slow  # ONNX export
+
 
 @pytest.mark.parametrize("method", ["ccot"])
 def test_tracking_step_onnx_parity(tmp_path, method):

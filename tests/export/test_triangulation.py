@@ -1,10 +1,13 @@
 import numpy as np
+import pytest
 import torch
 
 from data.sfm.synthetic import synthetic_cube_scene
 from export.triangulation import export_dogleg
 from models.geometry.dogleg import TriangulateDogleg
 from models.onnx_graph import onnx_session, run_onnx
+
+pytestmark = pytest.mark.slow  # ONNX export
 
 
 def test_dogleg_onnx_matches_pytorch(tmp_path):

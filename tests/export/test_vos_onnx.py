@@ -32,6 +32,7 @@ def test_per_object_filter_equals_grouped_conv() -> None:
     torch.testing.assert_close(apply_filter_per_object(z, wf), apply_filter(z[:, None], wf)[:, 0])
 
 
+@pytest.mark.slow
 def test_graph_parity(exported) -> None:
     tracker, out = exported
     ox = OnnxFRTMTracker(out)
@@ -52,6 +53,7 @@ def test_graph_parity(exported) -> None:
         torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-4)
 
 
+@pytest.mark.slow
 def test_onnx_tracker_reproduces_pytorch_masks(exported) -> None:
     tracker, out = exported
     frames, labels = synthetic_video(5, n_frames=8, height=64, width=96, n_objects=2)

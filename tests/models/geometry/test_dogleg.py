@@ -40,6 +40,7 @@ def levenberg_marquardt_reference(P: np.ndarray, x: np.ndarray, X0: np.ndarray, 
     return cost
 
 
+@pytest.mark.slow
 def test_dogleg_reaches_the_optimum():
     """Must show 2: on 1e5 3-view points (sigma 1 px), >= 99.9 % within 1e-6 of a 50-iteration fp64 LM."""
     s = synthetic_cube_scene(100_000, num_views=3, noise_px=1.0, seed=11)

@@ -1,5 +1,6 @@
 import cv2
 import numpy as np
+import pytest
 import torch
 
 from data.sfm.synthetic import synthetic_cube_scene
@@ -17,6 +18,7 @@ def test_fundamental_matrix_satisfies_epipolar_constraint():
     assert residual.abs().max() < 1e-12
 
 
+@pytest.mark.slow
 def test_correction_agrees_with_opencv_correct_matches():
     """Must show 3: within 1e-4 px of cv2.correctMatches on at least 99.9 % of 1e5 points."""
     s = synthetic_cube_scene(100_000, num_views=2, noise_px=1.0, seed=7)

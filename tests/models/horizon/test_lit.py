@@ -8,6 +8,8 @@ from lightning.pytorch.cli import LightningCLI
 from data.horizon.datamodule import HorizonDataModule
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 
+pytestmark = pytest.mark.slow  # LightningCLI fits
+
 
 @pytest.fixture(scope="module")
 def tiny_data(tmp_path_factory):

@@ -167,6 +167,7 @@ def test_good_features_find_rectangle_corners():
     assert len(many) == 20
 
 
+@pytest.mark.slow
 def test_compiled_step_equals_eager():
     img = _smooth_image(96, 128, 6).float()
     frames = [img, _translate(img.double(), 4.3, -2.6).float(), _translate(img.double(), 7.9, -4.1).float()]

@@ -23,6 +23,7 @@ def test_training_step_backpropagates_through_the_optimizer() -> None:
     assert torch.isfinite(loss) and g is not None and g.abs().sum() > 0
 
 
+@pytest.mark.slow
 def test_cli_fit_and_test(tmp_path) -> None:
     common = [
         "--model", "models.vos.lit.FRTMSegmentation", "--model.mdim", "8", "--model.train_channels", "8",
