@@ -2,10 +2,13 @@
 
 import math
 
+import pytest
 import torch
 
 from core.cylinder import (
+    LevelPanorama,
     column_azimuths,
+    interp_profile,
     level_to_tilted,
     row_tangents,
     s_curve,
@@ -64,3 +67,27 @@ def test_warp_levels_a_tilted_horizon():
     assert (level[inner].sum(0) - (height // 2 - 8)).abs().max() < 0.02
     again = warp_panorama(level[None, None], pitch, roll, to_level=False)[0, 0]
     assert (again[inner].sum(0) - tilted_edge).abs().max() < 0.02
+
+
+@pytest.mark.parametrize("to_level", [True, False])
+def test_warp_panorama_gradcheck(to_level):
+    """The warp is differentiable in the image and in the tilt (bilinear sampling, wrap-around in azimuth)."""
+    g = torch.Generator().manual_seed(0)
+    image = torch.rand(2, 1, 6, 16, generator=g, dtype=torch.float64, requires_grad=True)
+    pitch = torch.tensor([0.05, -0.11], dtype=torch.float64, requires_grad=True)
+    roll = torch.tensor([-0.03, 0.07], dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(lambda i, p, r: warp_panorama(i, p, r, to_level=to_level), (image, pitch, roll))
+    if to_level:
+        assert torch.autograd.gradcheck(LevelPanorama(), (image, pitch, roll))
+
+
+def test_tilt_and_profile_interpolation_gradcheck():
+    g = torch.Generator().manual_seed(1)
+    pitch = torch.tensor([0.05, -0.11], dtype=torch.float64, requires_grad=True)
+    roll = torch.tensor([-0.03, 0.07], dtype=torch.float64, requires_grad=True)
+    psi = (torch.rand(2, 5, generator=g, dtype=torch.float64) * 2 * math.pi).requires_grad_()
+    t = (torch.rand(2, 5, generator=g, dtype=torch.float64) - 0.5).requires_grad_()
+    assert torch.autograd.gradcheck(tilted_to_level, (psi, t, pitch, roll))
+    assert torch.autograd.gradcheck(s_curve, (psi, pitch, roll))
+    profile = torch.rand(2, 16, generator=g, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(interp_profile, (profile, psi))

@@ -2,6 +2,7 @@
 
 import math
 
+import pytest
 import torch
 
 from core.cylinder import row_tangents
@@ -28,3 +29,17 @@ def test_column_pool_finds_the_row_of_a_single_bright_row():
     pool.full_panorama = False  # heights in half-image-heights: row 5 of 8 is centred 3/8 below the centre
     _, position = pool(features)
     assert torch.allclose(position, torch.full_like(position, -3 / 8), atol=1e-6)
+
+
+@pytest.mark.parametrize("full_panorama", [True, False])
+def test_column_pool_gradcheck(full_panorama):
+    """Features and positions are differentiable in the features and in the row scores (the soft arg-max)."""
+    torch.manual_seed(0)
+    pool = ColumnPool(3, heads=2, head_channels=2, full_panorama=full_panorama).double()
+    features = torch.randn(2, 3, 4, 6, dtype=torch.float64, requires_grad=True)
+    score = pool.score.weight.detach().clone().requires_grad_()
+
+    def pooled(features, score):
+        return torch.func.functional_call(pool, {"score.weight": score}, (features,))
+
+    assert torch.autograd.gradcheck(pooled, (features, score))

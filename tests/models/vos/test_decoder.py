@@ -42,6 +42,12 @@ def test_bicubic_upsample2x_equals_interpolate(dtype: torch.dtype, size: tuple[i
     torch.testing.assert_close(grad_ours, grad_ref, atol=tol, rtol=tol)
 
 
+@pytest.mark.parametrize("size", [(1, 1), (3, 4)])
+def test_bicubic_upsample2x_gradcheck(size: tuple[int, int]) -> None:
+    x = torch.randn(1, 2, *size, generator=torch.Generator().manual_seed(2), dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(bicubic_upsample2x, (x,))
+
+
 def test_bicubic_upsample2x_rejects_non_4d() -> None:
     with pytest.raises(InputError, match="N, C, H, W"):
         bicubic_upsample2x(torch.zeros(3, 4, 5))

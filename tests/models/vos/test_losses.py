@@ -58,3 +58,18 @@ def test_soft_iou_limits_and_small_objects() -> None:
     assert float(soft_iou_loss(background, target)) > 0.8
     with pytest.raises(InputError, match="segmentation loss"):
         segmentation_loss(background, target, "dice")
+
+
+@pytest.mark.parametrize(("kind", "pos_weight", "boundary_weight"), [("bce", 1.0, 0.0), ("bce_iou", 2.5, 3.0)])
+def test_segmentation_loss_gradcheck(kind: str, pos_weight: float, boundary_weight: float) -> None:
+    gen = torch.Generator().manual_seed(1)
+    logits = (3 * torch.randn(2, 6, 7, generator=gen, dtype=torch.float64)).requires_grad_()
+    target = (torch.rand(2, 6, 7, generator=gen, dtype=torch.float64) > 0.7).double()
+    target[1, 0, 0] = 0.5  # a soft label
+
+    def loss(logits, target):
+        return segmentation_loss(logits, target, kind, pos_weight, boundary_weight=boundary_weight)
+
+    assert torch.autograd.gradcheck(loss, (logits, target))  # the target is held (its band is piecewise constant)
+    soft = torch.rand(2, 6, 7, generator=gen, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(soft_iou_loss, (logits, soft))

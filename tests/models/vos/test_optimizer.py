@@ -121,3 +121,25 @@ def test_init_schedule_decreases_loss_under_inference_mode(problem) -> None:
         assert (l2[:, -1] <= l2[:, 0] * 1.0001).all()
         _, _, _, l3 = SteepestDescent(5)(x, labels, v, gamma, wf, wp)
         assert (l3[:, -1] < l3[:, 0]).all()
+
+
+@pytest.mark.parametrize("optimizer", [GaussNewtonCG((2, 2), (1e-2, 1e-1)), SteepestDescent(3, (1e-2, 1e-1))],
+                         ids=["gauss_newton", "steepest_descent"])
+def test_unrolled_optimizer_gradcheck(problem, optimizer) -> None:
+    """Stays differentiable when unrolled (training through the optimizer): the fitted filters in the features,
+    labels, sample weights and starting filters, for the joint and the W_f-only problem."""
+    x, labels, v, gamma, wp, wf = problem(8, b=1, k=2, d=2, c=2, h=2, w=3, big=(4, 5))
+    x, labels, gamma, wp, wf = (t.requires_grad_() for t in (x, labels, gamma, wp, wf))
+
+    def joint(x, labels, gamma, wf, wp):
+        wp1, wf1, _, _ = optimizer(x, labels, v, gamma, wf, wp)
+        return wp1, wf1
+
+    # fast mode: the directional derivatives of random projections (the full Jacobian takes seconds)
+    assert torch.autograd.gradcheck(joint, (x, labels, gamma, wf, wp), fast_mode=True)
+    z = torch.einsum("bcd,bkdhw->bkchw", wp.detach(), x.detach()).requires_grad_()
+
+    def filter_only(z, labels, gamma, wf):
+        return optimizer(z, labels, v, gamma, wf)[1]
+
+    assert torch.autograd.gradcheck(filter_only, (z, labels, gamma, wf), fast_mode=True)

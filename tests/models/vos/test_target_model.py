@@ -6,6 +6,7 @@ import torch
 import torch.nn.functional as F
 
 from models.vos.target_model import (
+    TargetModel,
     TargetModelLoss,
     apply_filter,
     apply_filter_transpose,
@@ -76,3 +77,26 @@ def test_float64_shifted_einsums_equal_per_problem_convolutions(size: int) -> No
     torch.testing.assert_close((z * t).flatten(1).sum(1), lhs, rtol=1e-12, atol=1e-12)
     torch.testing.assert_close((wf * gf).flatten(1).sum(1), lhs, rtol=1e-12, atol=1e-12)
     torch.testing.assert_close(apply_filter(z.float(), wf.float()).double(), s, rtol=1e-4, atol=1e-4)
+
+
+@pytest.mark.parametrize("size", [1, 3])
+def test_filter_ops_gradcheck(size: int) -> None:
+    """The float64 filter path (shifted einsums) and its adjoints are differentiable in both arguments."""
+    g = torch.Generator().manual_seed(size)
+    z = torch.randn(2, 2, 3, 4, 5, generator=g, dtype=torch.float64, requires_grad=True)
+    q = torch.randn(2, 2, 4, 5, generator=g, dtype=torch.float64, requires_grad=True)
+    wf = torch.randn(2, 3, size, size, generator=g, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(apply_filter, (z, wf))
+    assert torch.autograd.gradcheck(apply_filter_transpose, (q, wf))
+    assert torch.autograd.gradcheck(lambda z, q: filter_grad(z, q, size), (z, q))
+
+
+def test_target_model_and_residual_gradcheck(problem) -> None:
+    x, labels, v, gamma, wp, wf = problem(7, b=1, k=2, d=3, c=2, h=3, w=4, big=(5, 7))
+    x, labels, gamma, wp, wf = (t.requires_grad_() for t in (x, labels, gamma, wp, wf))
+    assert torch.autograd.gradcheck(TargetModel(), (x, wp, wf))
+
+    def residual(x, labels, gamma, wp, wf):
+        return tuple(TargetModelLoss(x, labels, v, gamma, (0.3, 0.2)).residual(wp, wf))
+
+    assert torch.autograd.gradcheck(residual, (x, labels, gamma, wp, wf))
