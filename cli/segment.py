@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from core.errors import InputError
 
@@ -14,7 +15,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     src = p.add_argument_group("input: one video folder or a whole DAVIS split")
     src.add_argument("--video", help="folder of frames (sorted by name)")
     src.add_argument("--mask", help="first-frame mask PNG (palette ids or binary gray)")
-    src.add_argument("--davis", help="DAVIS root; segments and scores every sequence of --split")
+    src.add_argument("--davis", help="DAVIS root; segments and scores every sequence of --split (a rerun into the "
+                     "same --out resumes after the last finished sequence)")
     src.add_argument("--split", default="val", help="DAVIS ImageSets split (default val)")
     src.add_argument("--resolution", default="480p", help="DAVIS resolution folder (default 480p)")
     src.add_argument("--max-frames", type=int, help="DAVIS: cut sequences to this many frames")
@@ -44,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS); masks in {args.out}")
         return 0
     tracker = frtm_tracker(ckpt=args.ckpt, onnx=args.onnx)
-    result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames)
+    job = {"model": str(Path(args.ckpt or args.onnx).resolve())}
+    result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames, job)
     print(json.dumps({"J&F": result["J&F-Mean"], "J": result["J-Mean"], "F": result["F-Mean"], "FPS": fps}))
     return 0

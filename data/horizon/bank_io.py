@@ -15,7 +15,6 @@ The DEM fingerprint (SHA-256 of the flooded heights and the geotransform) catche
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +23,7 @@ import numpy as np
 import torch
 
 from core.errors import InputError
+from core.files import atomic_path, write_text
 from data.world.dem import Dem, dem_fingerprint
 
 BANK_FORMAT = "dcfvision-horizon-filter-bank"
@@ -75,9 +75,7 @@ class BankWriter:
         return any(c["index"] == index for c in self.meta["chunks"])
 
     def _save_meta(self) -> None:
-        tmp = self.path / "bank.json.partial"
-        tmp.write_text(json.dumps(self.meta, indent=1))
-        os.replace(tmp, self.path / "bank.json")
+        write_text(self.path / "bank.json", json.dumps(self.meta, indent=1))
 
     def write_chunk(self, index: int, filters: np.ndarray, cells: np.ndarray) -> None:
         """Store chunk ``index``: filters (L, 2K) (cast to the storage dtype) and grid cells (L, 2)."""
@@ -88,17 +86,17 @@ class BankWriter:
         for kind, array in (("filters", filters.astype(self.meta["storage_dtype"])),
                             ("cells", cells.astype(np.int32))):
             final = self.path / "chunks" / f"{kind}_{index:05d}.npy"
-            tmp = final.with_name(final.stem + ".partial.npy")
-            np.save(tmp, array)
-            os.replace(tmp, final)
+            with atomic_path(final) as tmp:
+                np.save(tmp, array)
         self.meta["chunks"] = [c for c in self.meta["chunks"] if c["index"] != index]
         self.meta["chunks"].append({"index": index, "count": int(filters.shape[0])})
         self.meta["chunks"].sort(key=lambda c: c["index"])
         self._save_meta()
 
-    def finish(self, **extra) -> Path:
-        """Mark the bank complete (with ``extra`` fields such as the build time) and return its path."""
-        self.meta.update(extra, complete=True)
+    def finish(self) -> Path:
+        """Mark the bank complete and return its path. The manifest holds no timings, so a resumed build writes
+        the same bytes as an uninterrupted one."""
+        self.meta.update(complete=True)
         self._save_meta()
         return self.path
 

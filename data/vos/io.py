@@ -14,6 +14,7 @@ import torch
 from PIL import Image, UnidentifiedImageError
 
 from core.errors import InputError
+from core.files import atomic_path
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
 
@@ -66,14 +67,13 @@ def read_mask(path: str | Path) -> torch.Tensor:
 
 
 def write_mask(path: str | Path, labels: torch.Tensor) -> None:
-    """Write an (H, W) label map (values 0..255) as a palette PNG with the DAVIS colours."""
+    """Write an (H, W) label map (values 0..255) as a palette PNG with the DAVIS colours (atomically)."""
     if labels.ndim != 2:
         raise InputError(f"a label map must be (H, W), got shape {tuple(labels.shape)}")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     image = Image.fromarray(labels.to(torch.uint8).cpu().numpy(), mode="P")
     image.putpalette(davis_palette())
-    image.save(path)
+    with atomic_path(path) as tmp:
+        image.save(tmp, format="PNG")
 
 
 def list_frames(directory: str | Path) -> list[Path]:

@@ -21,7 +21,6 @@ ch. 4.4): the profile is periodic, so circular correlation over the full circle 
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -245,6 +244,8 @@ def build_filter_bank(
     Returns:
         The opened ``FilterBank``.
     """
+    if tile_points < 1:
+        raise InputError(f"tile_points must be at least 1, got {tile_points}")
     grid = bank_grid(dem, settings.spacing, bounds)
     offsets = settings.sample_offsets()
     halo = max(abs(dr) for dr, _ in offsets)
@@ -260,8 +261,6 @@ def build_filter_bank(
     writer = BankWriter(out, meta, overwrite)
     heights = torch.from_numpy(np.ascontiguousarray(dem.z, dtype=np.float32)).to(device)
     ext_cols = np.arange(-halo, grid.cols + halo)
-    start = time.perf_counter()
-    rendered = 0
     tiles = list(range(0, grid.rows, tile_rows))
     with torch.no_grad():
         for index, r0 in enumerate(tqdm(tiles, desc="filter bank", unit="tile", disable=not progress)):
@@ -273,7 +272,6 @@ def build_filter_bank(
             rr, cc = np.meshgrid(rows, ext_cols, indexing="ij")
             positions = torch.from_numpy(grid.xy(rr[sea], cc[sea])).to(heights)
             profiles = torch.zeros(*sea.shape, settings.bins, dtype=heights.dtype, device=heights.device)
-            rendered += len(positions)
             if len(positions):
                 horizons = virtual_horizon(heights, dem.x0, dem.y0, dem.cell, positions, settings.camera_height,
                                            settings.bins, settings.max_range, settings.ray_step or dem.cell)
@@ -293,5 +291,5 @@ def build_filter_bank(
             k2 = 2 * settings.half_spectrum
             writer.write_chunk(index, np.concatenate(filters) if filters else np.zeros((0, k2), np.float32),
                                np.stack([li - halo + r0, lj - halo], -1))
-    writer.finish(build_seconds=time.perf_counter() - start, rendered_horizons=rendered)
+    writer.finish()
     return FilterBank(out)

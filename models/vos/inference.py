@@ -3,6 +3,7 @@ PNG output, overlay videos and J&F scoring."""
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
@@ -11,6 +12,7 @@ import numpy as np
 import torch
 
 from core.errors import InputError
+from core.files import write_text
 from data.vos.datamodule import synthetic_videos
 from data.vos.davis import davis_sequences
 from data.vos.io import davis_palette, list_frames, read_frame, read_mask, write_mask
@@ -109,15 +111,36 @@ def _with_images(tracker: FRTMLoop, images, mask: torch.Tensor):
         yield kept.pop(0), labels
 
 
+#: Per-sequence scores of ``segment_davis``, written after the sequence's masks: a finished sequence.
+SCORES_FILE = ".scores.json"
+#: What an output folder of ``segment_davis`` was written by (a resumed run must match it).
+JOB_FILE = "segment_job.json"
+
+
 def segment_davis(
     tracker: FRTMLoop, root: str | Path, split: str, resolution: str, out: str | Path,
-    max_frames: int | None = None,
+    max_frames: int | None = None, job: dict | None = None,
 ) -> tuple[dict[str, float], float]:
     """Segment every sequence of a DAVIS split, write palette PNGs under ``out/<sequence>/`` and the
-    per-object CSV ``out/per_sequence.csv``; returns (global J&F statistics, FPS)."""
+    per-object CSV ``out/per_sequence.csv``; returns (global J&F statistics, FPS of the sequences run).
+
+    Resumable: a sequence's scores are stored beside its masks once all of them are written, so a rerun after an
+    interruption skips finished sequences and writes the same CSV. ``job`` (e.g. the model's path) identifies
+    the run: an ``out`` written by another job is an ``InputError``.
+    """
     out = Path(out)
+    job = json.loads(json.dumps({**(job or {}), "split": split, "resolution": resolution, "max_frames": max_frames}))
+    if (out / JOB_FILE).is_file():
+        if json.loads((out / JOB_FILE).read_text()) != job:
+            raise InputError(f"{out} holds masks of another segmentation run ({out / JOB_FILE}); use another --out")
+    else:
+        write_text(out / JOB_FILE, json.dumps(job, indent=1))
     per_seq, n_frames, seconds = {}, 0, 0.0
     for seq in davis_sequences(root, split, resolution):
+        scores = out / seq.name / SCORES_FILE
+        if scores.is_file():
+            per_seq[seq.name] = {int(k): v for k, v in json.loads(scores.read_text()).items()}
+            continue
         frames, labels = seq.load(max_frames)
         start = time.perf_counter()
         pred = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
@@ -127,4 +150,5 @@ def segment_davis(
             write_mask(out / seq.name / f"{path.stem}.png", lab.to(torch.uint8))
         gt = torch.where(labels < 0, 0, labels)
         per_seq[seq.name] = evaluate_sequence(pred, gt)
+        write_text(scores, json.dumps(per_seq[seq.name]))
     return write_csv(per_seq, out / "per_sequence.csv"), n_frames / max(seconds, 1e-9)

@@ -10,6 +10,7 @@ average over objects and J&F is their mean.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from pathlib import Path
 
@@ -17,6 +18,7 @@ import torch
 import torch.nn.functional as F
 
 from core.errors import InputError
+from core.files import write_text
 
 BOUND_TH = 0.008
 CSV_COLUMNS = ("J&F-Mean", "J-Mean", "J-Recall", "J-Decay", "F-Mean", "F-Recall", "F-Decay")
@@ -200,13 +202,12 @@ def summarize(per_sequence: dict[str, dict[int, dict[str, float]]]) -> dict[str,
 def write_csv(per_sequence: dict[str, dict[int, dict[str, float]]], path: str | Path) -> dict[str, float]:
     """Write the per-object CSV (``Sequence`` = ``name_id``) after a ``Global`` row; return the latter."""
     glob = summarize(per_sequence)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(("Sequence", *CSV_COLUMNS))
-        writer.writerow(("Global", *(f"{glob[k]:.6f}" for k in CSV_COLUMNS)))
-        for name, objects in per_sequence.items():
-            for obj, stats in objects.items():
-                writer.writerow((f"{name}_{obj}", *(f"{stats[k]:.6f}" for k in CSV_COLUMNS)))
+    text = io.StringIO()
+    writer = csv.writer(text)
+    writer.writerow(("Sequence", *CSV_COLUMNS))
+    writer.writerow(("Global", *(f"{glob[k]:.6f}" for k in CSV_COLUMNS)))
+    for name, objects in per_sequence.items():
+        for obj, stats in objects.items():
+            writer.writerow((f"{name}_{obj}", *(f"{stats[k]:.6f}" for k in CSV_COLUMNS)))
+    write_text(path, text.getvalue())
     return glob

@@ -1,8 +1,12 @@
-"""``infer.py build-bank``: a small bank with the requested settings, and a missing DEM in one line."""
+"""``infer.py build-bank``: a small bank with the requested settings, a missing DEM in one line, and a killed
+build that resumes to the same bytes."""
+
+import pytest
 
 from data.horizon.bank_io import FilterBank
 from data.world.dem import generate_archipelago, save_dem
 from infer import main
+from tests.cli.conftest import kill_and_resume, run_infer, tree_bytes
 
 
 def test_build_bank_writes_the_requested_bank(tmp_path, capsys):
@@ -22,3 +26,17 @@ def test_build_bank_writes_the_requested_bank(tmp_path, capsys):
 def test_build_bank_missing_dem(tmp_path, capsys):
     assert main(["build-bank", "--dem", str(tmp_path / "missing.tif"), "--spacing", "5", "--out", "b"]) == 2
     assert "DEM file not found" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_killed_build_resumes_to_the_same_bank(tmp_path):
+    dem = generate_archipelago(size_m=1500, cell=10, seed=5, feature_scale_m=300, land_fraction=0.2, forest_height=0)
+    save_dem(tmp_path / "dem.tif", dem)
+    args = ["build-bank", "--dem", str(tmp_path / "dem.tif"), "--spacing", "10", "--bins", "128", "--max-range",
+            "600", "--tile-points", "1500"]
+    run_infer([*args, "--out", str(tmp_path / "whole")])
+    hit = kill_and_resume([*args, "--out", str(tmp_path / "killed")], tmp_path / "killed", kills=3, seed=1,
+                          max_extra_s=0.3)
+    assert hit == 3
+    whole = tree_bytes(tmp_path / "whole")
+    assert len(whole) == 1 + 2 * 15 and tree_bytes(tmp_path / "killed") == whole

@@ -1,4 +1,5 @@
-"""``infer.py segment``: a run from a checkpoint writes palette masks; bad input ends in one line, exit 2."""
+"""``infer.py segment``: a run from a checkpoint writes palette masks; bad input ends in one line, exit 2; a killed
+DAVIS run resumes to the same masks and scores."""
 
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import infer
 from data.vos.io import read_mask, write_mask
 from data.vos.synthetic import synthetic_video
 from models.vos.lit import FRTMSegmentation
+from tests.cli.conftest import kill_and_resume, run_infer, tree_bytes
 
 TRACKER = {"channels": 8, "num_aug": 2, "memory_size": 6, "init_schedule": [2], "update_schedule": [2]}
 
@@ -67,3 +69,41 @@ def test_bad_input_exits_2(video: Path, tmp_path: Path, capsys, mask: str, extra
                        "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and message in err[0], err
+
+
+@pytest.fixture(scope="module")
+def davis(tmp_path_factory) -> Path:
+    """A DAVIS 2017 layout of 6 short synthetic sequences (480p folder names, 48 x 64 px)."""
+    root = tmp_path_factory.mktemp("davis")
+    names = [f"seq{i}" for i in range(6)]
+    for i, name in enumerate(names):
+        frames, labels = synthetic_video(20 + i, n_frames=6, height=48, width=64, n_objects=2)
+        (root / "JPEGImages" / "480p" / name).mkdir(parents=True)
+        for t, f in enumerate(frames):
+            Image.fromarray((f.permute(1, 2, 0).numpy() * 255).astype(np.uint8)).save(
+                root / "JPEGImages" / "480p" / name / f"{t:05d}.jpg")
+            write_mask(root / "Annotations" / "480p" / name / f"{t:05d}.png", labels[t])
+    (root / "ImageSets" / "480p").mkdir(parents=True)
+    (root / "ImageSets" / "480p" / "val.txt").write_text("\n".join(names) + "\n")
+    return root
+
+
+@pytest.mark.slow
+def test_killed_davis_run_resumes_to_the_same_masks_and_scores(video: Path, davis: Path, tmp_path: Path) -> None:
+    args = ["segment", "--davis", str(davis), "--split", "val", "--ckpt", str(video / "model.ckpt")]
+    run_infer([*args, "--out", str(tmp_path / "whole")])
+    hit = kill_and_resume([*args, "--out", str(tmp_path / "killed")], tmp_path / "killed", kills=3, seed=2,
+                          max_extra_s=0.5)
+    assert hit == 3
+    whole = tree_bytes(tmp_path / "whole")
+    assert len(whole) == 6 * (6 + 1) + 2 and tree_bytes(tmp_path / "killed") == whole
+
+
+def test_davis_output_of_another_run_is_refused(video: Path, davis: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "segment_job.json").write_text('{"model": "another.ckpt"}')
+    code = infer.main(["segment", "--davis", str(davis), "--split", "val", "--ckpt", str(video / "model.ckpt"),
+                       "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "holds masks of another segmentation run" in err[0]
