@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import sys
 from collections.abc import Sequence
 
-from core.errors import InputError
+from core.command import CommandParser, run_command
 
 #: Command modules in the order ``--help`` lists them.
 COMMANDS = ("triangulate", "render_dataset", "horizon_label", "horizon", "track", "segment", "build_bank",
@@ -24,19 +23,11 @@ Run ``python infer.py --help`` for the list and ``python infer.py COMMAND --help
 Bad arguments and bad input files end with a one-line message and exit code 2."""
 
 
-class OneLineParser(argparse.ArgumentParser):
-    """ArgumentParser whose errors are one line on stderr and exit code 2."""
-
-    def error(self, message: str) -> None:  # noqa: D102
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
-        raise SystemExit(2)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The parser with every command of ``COMMANDS`` as a subcommand."""
-    parser = OneLineParser(prog="infer.py", description=DESCRIPTION,
+    parser = CommandParser(prog="infer.py", description=DESCRIPTION,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=CommandParser, metavar="COMMAND")
     for module_name in COMMANDS:
         module = importlib.import_module(f"cli.{module_name}")
         p = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP)
@@ -48,8 +39,4 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` and run its command; input errors end as one line on stderr and exit code 2."""
     args = build_parser().parse_args(argv)
-    try:
-        return args.run(args)
-    except (InputError, FileNotFoundError) as err:
-        sys.stderr.write(f"infer.py {args.command}: error: {err}\n")
-        return 2
+    return run_command(f"infer.py {args.command}", lambda: args.run(args))

@@ -68,6 +68,9 @@ def run(args: argparse.Namespace) -> int:
         localizer = HorizonLocalizer(bank, matcher=matcher, band_deg=args.band_deg,
                                      drop_harmonics=args.drop_harmonics)
         names, profiles, compass = read_profiles(args.profiles, args.compass)
+        if profiles.shape[1] != bank.bins:
+            raise InputError(f"profile file {args.profiles} has {profiles.shape[1]} azimuth bins per profile, the "
+                             f"bank {args.bank} {bank.bins}")
         profile = torch.from_numpy(profiles).float()
     else:
         if args.compass is None:

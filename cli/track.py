@@ -30,6 +30,7 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
+    from core.files import writable_folder, write_npz
     from core.threads import cpu_threads
     from data.flow.frames import read_frames, read_points
     from models.tracking.overlay import write_overlay_video
@@ -37,13 +38,14 @@ def run(args: argparse.Namespace) -> int:
 
     frames, paths = read_frames(args.frames)
     points = read_points(args.points) if args.points else None
+    writable_folder(Path(args.out).parent)  # an unwritable output fails before the tracking, not after it
     start = time.perf_counter()
     with cpu_threads(args.threads):
         result = track_points(frames, points, args.detect, args.method, args.device, progress=True,
                               compile=args.compile)
     seconds = time.perf_counter() - start
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    np.savez(args.out, method=args.method, frames=np.array([str(p) for p in paths]), **result)
+    write_npz(args.out, compress=False, method=np.array(args.method), frames=np.array([str(p) for p in paths]),
+              **result)
     if args.video:
         write_overlay_video(args.video, frames, result["tracks"], result["lost"])
     n_frames, n_points = result["lost"].shape

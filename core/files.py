@@ -26,6 +26,18 @@ def partial_name(path: Path) -> Path:
     return path.with_name(f".{path.stem}.partial{path.suffix}")
 
 
+def writable_folder(folder: str | Path) -> Path:
+    """``folder``, created if missing; an ``InputError`` naming it when it cannot be created or written."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"cannot create the output folder {folder}: {err.strerror or err}") from err
+    if not os.access(folder, os.W_OK):
+        raise InputError(f"the output folder {folder} is not writable")
+    return folder
+
+
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path to write; on leaving the block it is renamed to ``path`` (removed on an error).
@@ -33,12 +45,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     An output folder that cannot be created or written is an ``InputError`` naming it.
     """
     path = Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError(f"cannot create the output folder {path.parent}: {err.strerror or err}") from err
-    if not os.access(path.parent, os.W_OK):
-        raise InputError(f"the output folder {path.parent} is not writable")
+    writable_folder(path.parent)
     tmp = partial_name(path)
     try:
         yield tmp

@@ -21,6 +21,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
+from core.command import CommandParser, run_command
 from core.errors import InputError
 from export.onnx import export_onnx
 from models.builders import horizon_network
@@ -63,22 +64,24 @@ def parity(which: str, model: nn.Module, path: str | Path, inputs: tuple[torch.T
     return float((actual - expected).abs().max())
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> int:
+    parser = CommandParser(prog="export.horizon_onnx", description=__doc__,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--which", choices=tuple(SPECS), required=True)
     parser.add_argument("--ckpt", type=Path, help="Lightning checkpoint of the system (finder / segmenter)")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--height", type=int, default=64)
     parser.add_argument("--width", type=int, default=512)
-    args = parser.parse_args()
-    try:
+    args = parser.parse_args(argv)
+
+    def run() -> None:
         model = horizon_network(args.which, args.ckpt)
         path = export_horizon(args.which, model, args.out, args.height, args.width)
         error = parity(args.which, model, path, example_inputs(args.which, args.height, args.width, seed=1))
-    except InputError as err:
-        raise SystemExit(f"export.horizon_onnx: error: {err}") from err
-    print(f"wrote {path}; max |onnxruntime - torch| = {error:.2e}")
+        print(f"wrote {path}; max |onnxruntime - torch| = {error:.2e}")
+
+    return run_command("export.horizon_onnx", run)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from core.command import CommandParser, run_command
 from core.errors import InputError
 from export.onnx import export_onnx
 from models.horizon.matching import BandPsr
@@ -52,8 +53,9 @@ def parity(path: str | Path, model: BandPsr, inputs: tuple[torch.Tensor, ...]) -
     return float(np.max(np.abs(onnx_psr - reference)) / np.max(np.abs(reference)))
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> int:
+    parser = CommandParser(prog="export.localization_onnx", description=__doc__,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--bins", type=int, default=1024)
     parser.add_argument("--frequencies", type=int, default=None, help="stored half-spectrum length K")
@@ -61,13 +63,17 @@ def main() -> None:
     parser.add_argument("--exclude", type=int, default=11)
     parser.add_argument("--threshold-deg", type=float, default=1.0, help="profile normalisation threshold")
     parser.add_argument("--drop-harmonics", type=int, default=0, help="ignore the profiles' harmonics 1..H")
-    args = parser.parse_args()
-    path = export_matcher(args.out, args.bins, args.frequencies, args.band_deg, args.exclude, args.threshold_deg,
-                          args.drop_harmonics)
-    inputs = example_inputs(args.bins, args.frequencies or args.bins // 2 + 1, locations=500, batch=3, seed=1)
-    error = parity(path, BandPsr(args.band_deg, args.exclude, args.threshold_deg, args.drop_harmonics), inputs)
-    print(f"wrote {path}; onnxruntime vs PyTorch PSR difference (relative to the largest PSR) {error:.2e}")
+    args = parser.parse_args(argv)
+
+    def run() -> None:
+        path = export_matcher(args.out, args.bins, args.frequencies, args.band_deg, args.exclude,
+                              args.threshold_deg, args.drop_harmonics)
+        inputs = example_inputs(args.bins, args.frequencies or args.bins // 2 + 1, locations=500, batch=3, seed=1)
+        error = parity(path, BandPsr(args.band_deg, args.exclude, args.threshold_deg, args.drop_harmonics), inputs)
+        print(f"wrote {path}; onnxruntime vs PyTorch PSR difference (relative to the largest PSR) {error:.2e}")
+
+    return run_command("export.localization_onnx", run)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

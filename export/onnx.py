@@ -11,6 +11,8 @@ import onnx
 import torch
 from torch import nn
 
+from core.files import partial_name, writable_folder
+
 #: Opset used for every export (DFT needs >= 18; 5-D GridSample needs 20).
 OPSET = 20
 
@@ -29,7 +31,8 @@ def export_onnx(
     so a failed export leaves no file behind.
     """
     path = Path(path)
-    tmp = path.with_name(path.stem + ".partial.onnx")
+    writable_folder(path.parent)
+    tmp = partial_name(path)
     model = model.eval()
     program = torch.onnx.export(
         model,

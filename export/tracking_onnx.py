@@ -17,6 +17,7 @@ from pathlib import Path
 
 import torch
 
+from core.command import CommandParser, run_command
 from export.onnx import export_onnx
 from models.tracking import PointTracker
 
@@ -56,15 +57,17 @@ def export_tracking_step(
         return export_onnx(tracker, args, path, inputs, outputs, dynamic_shapes=dynamic)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> int:
+    parser = CommandParser(prog="export.tracking_onnx", description=__doc__,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", required=True, help="output .onnx path")
     parser.add_argument("--method", default="ccot", choices=["ccot", "ccot_ff", "mosse"])
     parser.add_argument("--height", type=int, default=240, help="example frame height (the graph is dynamic)")
     parser.add_argument("--width", type=int, default=320, help="example frame width (the graph is dynamic)")
-    args = parser.parse_args()
-    print(export_tracking_step(args.out, args.method, args.height, args.width))
+    args = parser.parse_args(argv)
+    return run_command("export.tracking_onnx",
+                       lambda: print(f"wrote {export_tracking_step(args.out, args.method, args.height, args.width)}"))
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

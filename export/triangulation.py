@@ -14,6 +14,7 @@ from pathlib import Path
 
 import torch
 
+from core.command import CommandParser, run_command
 from data.sfm.synthetic import synthetic_cube_scene
 from export.onnx import export_onnx
 from models.geometry.dogleg import TriangulateDogleg
@@ -36,16 +37,20 @@ def export_dogleg(path: str | Path, views: int = 3, iterations: int = 5, dtype: 
     )
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv: list[str] | None = None) -> int:
+    parser = CommandParser(prog="export.triangulation", description=__doc__,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, required=True, help="ONNX file to write")
     parser.add_argument("--views", type=int, default=3)
     parser.add_argument("--iterations", type=int, default=5)
     parser.add_argument("--dtype", choices=("float32", "float64"), default="float32")
-    args = parser.parse_args()
-    path = export_dogleg(args.out, args.views, args.iterations, getattr(torch, args.dtype))
-    print(f"wrote {path}")
+    args = parser.parse_args(argv)
+
+    def run() -> None:
+        print(f"wrote {export_dogleg(args.out, args.views, args.iterations, getattr(torch, args.dtype))}")
+
+    return run_command("export.triangulation", run)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

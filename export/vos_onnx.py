@@ -20,13 +20,15 @@ and the target-model input channels.
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from pathlib import Path
 
 import torch
 from torch import nn
 from torch.export import Dim
 
-from core.errors import InputError
+from core.files import writable_folder
 from export.onnx import export_onnx
 from models.vos.memory import Memory
 from models.vos.onnx_tracker import SETTINGS_FILE, OnnxFRTMTracker
@@ -127,10 +129,26 @@ class UpdateGraph(nn.Module):
 
 @torch.no_grad()
 def export_frtm(tracker: FRTMTracker, out_dir: str | Path, height: int = 96, width: int = 160) -> dict[str, Path]:
-    """Export the five FRTM graphs of ``tracker`` into ``out_dir`` (example size ``height`` x ``width``)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tracker = tracker.eval()
+    """Export the five FRTM graphs of ``tracker`` and its settings file into ``out_dir`` (example size ``height`` x
+    ``width``). The graphs are written to a hidden sibling folder first and moved in when all of them passed the
+    checker, so a failed export leaves no part of an export behind."""
+    final = writable_folder(out_dir)
+    out = final.with_name(f".{final.name}.partial")
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir()
+    try:
+        paths = _export_graphs(tracker.eval(), out, height, width)
+        for name, path in paths.items():
+            os.replace(path, final / path.name)
+            paths[name] = final / path.name
+        os.replace(out / SETTINGS_FILE, final / SETTINGS_FILE)
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    return paths
+
+
+def _export_graphs(tracker: FRTMTracker, out: Path, height: int, width: int) -> dict[str, Path]:
+    """The graphs and the settings file of ``export_frtm`` written into ``out``."""
     c, k, d = tracker.settings.channels, tracker.settings.kernel_size, tracker.target_input.channels
     stride = tracker.target_input.stride
     h, w = -(-height // stride), -(-width // stride)
@@ -202,10 +220,10 @@ def mask_parity(
 def main(argv: list[str] | None = None) -> int:
     """``python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check-videos N]``: export,
     then optionally compare the onnxruntime tracker's masks with PyTorch's on N held-out synthetic videos."""
-    import argparse
-    import sys
+    from core.command import CommandParser, run_command
 
-    p = argparse.ArgumentParser(description="Export an FRTMSegmentation checkpoint to the FRTM ONNX graphs.")
+    p = CommandParser(prog="export.vos_onnx",
+                      description="Export an FRTMSegmentation checkpoint to the FRTM ONNX graphs.")
     p.add_argument("--ckpt", required=True, help="FRTMSegmentation checkpoint")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--height", type=int, default=96, help="example frame height (the graphs accept any)")
@@ -214,16 +232,16 @@ def main(argv: list[str] | None = None) -> int:
                    help="mask parity on this many held-out synthetic test videos (the checkpoint's data settings)")
     p.add_argument("--check-frames", type=int, default=20, help="frames per parity video")
     args = p.parse_args(argv)
+    return run_command("export.vos_onnx", lambda: _export_and_check(args))
+
+
+def _export_and_check(args) -> None:
     from models.builders import frtm_tracker
     from models.vos.inference import checkpoint_test_videos
 
-    try:
-        tracker = frtm_tracker(ckpt=args.ckpt)
-        paths = export_frtm(tracker, args.out, args.height, args.width)
-        videos = checkpoint_test_videos(args.ckpt, args.check_videos, args.check_frames)
-    except InputError as err:
-        print(f"export.vos_onnx: error: {err}", file=sys.stderr)
-        return 2
+    tracker = frtm_tracker(ckpt=args.ckpt)
+    videos = checkpoint_test_videos(args.ckpt, args.check_videos, args.check_frames)
+    paths = export_frtm(tracker, args.out, args.height, args.width)
     for name, path in paths.items():
         print(f"{name:>9}: {path}")
     if videos:
@@ -231,7 +249,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"mask parity onnxruntime vs PyTorch on {len(videos)} held-out synthetic videos: {len(ious)} "
               f"frame-objects, IoU mean {ious.mean():.4f}, min {ious.min():.4f}, below 0.99: "
               f"{int((ious < 0.99).sum())}")
-    return 0
 
 
 if __name__ == "__main__":

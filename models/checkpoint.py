@@ -8,6 +8,7 @@ from typing import TypeVar
 
 import lightning as L
 import torch
+from torch import nn
 
 from core.errors import InputError
 
@@ -38,6 +39,21 @@ def load_system(system: type[System], path: str | Path) -> System:
         raise InputError(f"checkpoint {path} is not a {system.__name__} checkpoint ({err}; its hyper-parameters: "
                          f"{sorted(stored)})") from err
     return model.eval()
+
+
+def check_checkpoint_fits(model: nn.Module, path: str | Path) -> None:
+    """``InputError`` unless checkpoint ``path`` holds weights of exactly ``model``'s names and shapes (e.g. a
+    ``--ckpt_path`` of another model class or architecture)."""
+    state = read_checkpoint(path)["state_dict"]
+    own = model.state_dict()
+    missing = sorted(set(own) - set(state))
+    unexpected = sorted(set(state) - set(own))
+    reshaped = sorted(k for k in set(own) & set(state) if tuple(own[k].shape) != tuple(state[k].shape))
+    if missing or unexpected or reshaped:
+        example = (missing or unexpected or reshaped)[0]
+        raise InputError(f"checkpoint {path} does not fit the configured {type(model).__name__}: {len(missing)} "
+                         f"weights missing, {len(unexpected)} unexpected, {len(reshaped)} of another shape "
+                         f"(e.g. {example})")
 
 
 def datamodule_settings(path: str | Path) -> dict:

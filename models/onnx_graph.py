@@ -35,7 +35,13 @@ def run_onnx(session: ort.InferenceSession, *inputs: torch.Tensor) -> list[np.nd
     names = [i.name for i in session.get_inputs()]
     if len(names) != len(inputs):
         raise InputError(f"the ONNX graph takes {len(names)} inputs ({', '.join(names)}), got {len(inputs)}")
-    return session.run(None, {n: t.detach().cpu().numpy() for n, t in zip(names, inputs, strict=True)})
+    try:
+        return session.run(None, {n: t.detach().cpu().numpy() for n, t in zip(names, inputs, strict=True)})
+    except Exception as err:
+        if not type(err).__module__.startswith("onnxruntime"):
+            raise
+        shapes = ", ".join(f"{n} {tuple(t.shape)}" for n, t in zip(names, inputs, strict=True))
+        raise InputError(f"the ONNX graph rejected its inputs ({shapes}): {err}") from err
 
 
 class OnnxGraph:

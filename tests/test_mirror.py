@@ -8,7 +8,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Tests of the project as a whole rather than of one module.
-PROJECT_WIDE = {"test_layers.py", "test_mirror.py"}
+PROJECT_WIDE = {"test_layers.py", "test_mirror.py", "test_bad_input.py"}
 
 
 def misplaced_tests(root: Path = ROOT) -> list[str]:

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from core.errors import InputError
-from core.files import atomic_path, write_text
+from core.files import atomic_path, writable_folder, write_text
 from data.world.dem import Dem, dem_fingerprint
 
 BANK_FORMAT = "dcfvision-horizon-filter-bank"
@@ -55,7 +55,7 @@ class BankWriter:
                                  "choose another --out or pass --overwrite")
             if same:
                 self.meta["chunks"] = [c for c in old["chunks"] if self._chunk_ok(c)]
-        (self.path / "chunks").mkdir(parents=True, exist_ok=True)
+        writable_folder(self.path / "chunks")
         self._save_meta()
 
     def _read_existing(self) -> dict | None:

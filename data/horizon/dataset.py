@@ -27,7 +27,7 @@ import torch
 from tqdm import tqdm
 
 from core.errors import InputError
-from core.files import atomic_path, write_bytes, write_npz, write_text
+from core.files import atomic_path, writable_folder, write_bytes, write_npz, write_text
 from core.raycast import VirtualHorizon
 from data.horizon.classical import ClassicalHorizon
 from data.world.dem import Dem, dem_fingerprint, save_dem
@@ -178,7 +178,7 @@ def write_dataset(
             return out
         raise InputError(f"{out} already holds a horizon dataset with other settings; write to another folder")
     job = _job(dem, settings, batch)
-    partial = _start_or_resume(out, job)
+    partial = _start_or_resume(writable_folder(out), job)
     rng = np.random.default_rng(settings.seed)
     generator = torch.Generator().manual_seed(settings.seed)
     poses = random_trajectories(dem, settings, rng)

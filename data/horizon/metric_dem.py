@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from core.errors import InputError
-from data.world.dem import GEOTIFF_SUFFIXES, Dem, flood, load_dem
+from data.world.dem import GEOTIFF_SUFFIXES, Dem, check_heights, flood, load_dem
 
 
 def utm_crs(lon: float, lat: float) -> str:
@@ -44,7 +44,7 @@ def load_metric_dem(path: str | Path, sea_level: float = 0.0) -> Dem:
             transform, width, height = calculate_default_transform(
                 src.crs, target, src.width, src.height, *src.bounds, resolution=(cell, cell))
             z = np.full((height, width), np.nan, dtype=np.float64)
-            source = src.read(1).astype(np.float64)
+            source = check_heights(src.read(1).astype(np.float64), path)
             if src.nodata is not None:
                 source[source == src.nodata] = np.nan
             reproject(source, z, src_transform=src.transform, src_crs=src.crs, src_nodata=np.nan,

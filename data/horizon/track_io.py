@@ -61,6 +61,8 @@ def read_profiles(path: str | Path, compass_csv: str | Path | None = None) -> tu
         profiles = profiles[None]
     if profiles.ndim != 2:
         raise InputError(f"profile file {path}: profiles must be (T, N), got shape {profiles.shape}")
+    if not np.isfinite(profiles).all():
+        raise InputError(f"profile file {path} holds {int((~np.isfinite(profiles)).sum())} NaN or infinite values")
     names = [str(i) for i in range(len(profiles))]
     if compass_csv is not None:
         _, compass = read_compass_csv(compass_csv, need_image=False)

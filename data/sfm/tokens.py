@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -55,9 +56,12 @@ class TokenReader:
         for _ in range(count):
             token = self._next(what)
             try:
-                values.append(float(token))
+                value = float(token)
             except ValueError:
                 raise self.error(f"expected a number for {what}, got {token!r}") from None
+            if not math.isfinite(value):
+                raise self.error(f"{what} must be finite, got {token!r}")
+            values.append(value)
         return values
 
     def expect_end(self) -> None:

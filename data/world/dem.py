@@ -208,6 +208,14 @@ def _check_transform(a: float, b: float, c: float, d: float, e: float, f: float,
     return c, f, a
 
 
+def check_heights(z: np.ndarray, path: str | Path) -> np.ndarray:
+    """``z`` unless it holds infinite heights (NaN and nodata cells are sea; an infinity is a broken file)."""
+    infinite = int(np.isinf(z).sum())
+    if infinite:
+        raise InputError(f"DEM {path} has {infinite} infinite heights (NaN and nodata cells are read as sea)")
+    return z
+
+
 def load_dem(path: str | Path, sea_level: float = 0.0, require_crs: bool = False) -> Dem:
     """Read a GeoTIFF (rasterio) or ``.npz`` DEM and flood it at ``sea_level``.
 
@@ -251,7 +259,7 @@ def load_dem(path: str | Path, sea_level: float = 0.0, require_crs: bool = False
         raise InputError(f"DEM {path}: unknown format {suffix!r} (use .tif, .tiff or .npz)")
     if require_crs and crs_text is None:
         raise InputError(f"DEM {path} has no CRS, but one is needed (positions are given in map coordinates)")
-    return Dem(flood(z, sea_level, nodata), x0=x0, y0=y0, cell=cell, crs=crs_text)
+    return Dem(flood(check_heights(z, path), sea_level, nodata), x0=x0, y0=y0, cell=cell, crs=crs_text)
 
 
 def save_dem(path: str | Path, dem: Dem) -> None:

@@ -4,6 +4,8 @@ PNG output, overlay videos and J&F scoring."""
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import time
 from pathlib import Path
 
@@ -12,7 +14,7 @@ import numpy as np
 import torch
 
 from core.errors import InputError
-from core.files import write_text
+from core.files import partial_name, writable_folder, write_text
 from data.vos.datamodule import synthetic_videos
 from data.vos.davis import davis_sequences
 from data.vos.io import davis_palette, list_frames, read_frame, read_mask, write_mask
@@ -73,25 +75,42 @@ def segment_folder(
     fps: float = 24.0,
 ) -> tuple[int, float]:
     """Segment the frames of ``video`` from the first-frame mask; write ``out/<frame>.png`` palette masks and
-    optionally an overlay video. Returns (frames, seconds)."""
+    optionally an overlay video. Returns (frames, seconds).
+
+    The masks (and the video) are written under hidden temporary names and moved into place when every frame
+    was segmented, so a bad frame half-way leaves no masks behind."""
     frames = list_frames(video)
     mask = check_first_frame(frames, mask_path)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    final = writable_folder(out)
+    staging = final.with_name(f".{final.name}.partial")
+    shutil.rmtree(staging, ignore_errors=True)
+    video_tmp = partial_name(Path(overlay)) if overlay else None
+    if video_tmp is not None:
+        writable_folder(video_tmp.parent)
     palette = np.array(davis_palette(), dtype=np.float32).reshape(256, 3)
     writer = None
     start = time.perf_counter()
     images = (read_frame(p) for p in frames)
-    for path, (image, labels) in zip(frames, _with_images(tracker, images, mask), strict=True):
-        write_mask(out / f"{path.stem}.png", labels.to(torch.uint8))
-        if overlay:
-            if writer is None:
-                Path(overlay).parent.mkdir(parents=True, exist_ok=True)
-                writer = cv2.VideoWriter(str(overlay), cv2.VideoWriter_fourcc(*"mp4v"), fps,
-                                         (image.shape[-1], image.shape[-2]))
-            writer.write(_overlay(image, labels, palette))
-    if writer is not None:
-        writer.release()
+    try:
+        for path, (image, labels) in zip(frames, _with_images(tracker, images, mask), strict=True):
+            write_mask(staging / f"{path.stem}.png", labels.to(torch.uint8))
+            if video_tmp is not None:
+                if writer is None:
+                    writer = cv2.VideoWriter(str(video_tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps,
+                                             (image.shape[-1], image.shape[-2]))
+                writer.write(_overlay(image, labels, palette))
+        if writer is not None:
+            writer.release()
+            writer = None
+            os.replace(video_tmp, overlay)
+        for png in sorted(staging.iterdir()):
+            os.replace(png, final / png.name)
+    finally:
+        if writer is not None:
+            writer.release()
+        if video_tmp is not None:
+            video_tmp.unlink(missing_ok=True)
+        shutil.rmtree(staging, ignore_errors=True)
     return len(frames), time.perf_counter() - start
 
 
@@ -129,6 +148,7 @@ def segment_davis(
     the run: an ``out`` written by another job is an ``InputError``.
     """
     out = Path(out)
+    sequences = davis_sequences(root, split, resolution)  # a bad DAVIS root fails before anything is written
     job = json.loads(json.dumps({**(job or {}), "split": split, "resolution": resolution, "max_frames": max_frames}))
     if (out / JOB_FILE).is_file():
         if json.loads((out / JOB_FILE).read_text()) != job:
@@ -136,7 +156,7 @@ def segment_davis(
     else:
         write_text(out / JOB_FILE, json.dumps(job, indent=1))
     per_seq, n_frames, seconds = {}, 0, 0.0
-    for seq in davis_sequences(root, split, resolution):
+    for seq in sequences:
         scores = out / seq.name / SCORES_FILE
         if scores.is_file():
             per_seq[seq.name] = {int(k): v for k, v in json.loads(scores.read_text()).items()}

@@ -85,7 +85,7 @@ def test_localize_bad_input(world, tmp_path, capsys):
     bank = str(root / "bank")
     np.savez(tmp_path / "short.npz", horizon=np.zeros((2, 100)), compass_deg=np.zeros(2))
     assert main(["localize", "--bank", bank, "--profiles", str(tmp_path / "short.npz"), "--out", "x.csv"]) == 2
-    assert "profile length 100 does not match the bank's 256" in capsys.readouterr().err
+    assert "short.npz has 100 azimuth bins per profile, the bank" in capsys.readouterr().err
     np.savez(tmp_path / "north.npz", horizon=np.zeros((1, 256)), compass_deg=np.array([360.0]))
     assert main(["localize", "--bank", bank, "--profiles", str(tmp_path / "north.npz"), "--out", "x.csv"]) == 2
     assert "outside [0, 360)" in capsys.readouterr().err
