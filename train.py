@@ -21,6 +21,9 @@ from core.command import run_command
 from core.errors import InputError
 from models.checkpoint import check_checkpoint_fits, read_checkpoint
 
+#: ``--ckpt_path`` values Lightning resolves itself (``last``: the newest ``last.ckpt`` of the run, to resume).
+LIGHTNING_CKPT_ALIASES = ("last", "best", "hpc")
+
 
 class DcfCLI(LightningCLI):
     """LightningCLI that checks ``--ckpt_path`` against the configured model before the trainer starts: the file
@@ -30,7 +33,7 @@ class DcfCLI(LightningCLI):
     def _parse_ckpt_path(self) -> None:
         subcommand = self.config.get("subcommand")
         path = self.config[subcommand].get("ckpt_path") if subcommand else None
-        if path:
+        if path and path not in LIGHTNING_CKPT_ALIASES:
             stored = read_checkpoint(path, "--ckpt_path").get("hyper_parameters", {}).get("_class_path")
             configured = getattr(self.config[subcommand].get("model"), "class_path", None)
             if stored and configured and stored != configured:
@@ -40,7 +43,7 @@ class DcfCLI(LightningCLI):
 
     def _check_ckpt_path(self) -> None:
         path = self.config[self.subcommand].get("ckpt_path")
-        if path is not None:
+        if path is not None and path not in LIGHTNING_CKPT_ALIASES:
             check_checkpoint_fits(self.model, path)
 
     before_fit = before_validate = before_test = before_predict = _check_ckpt_path

@@ -12,7 +12,7 @@ Samples (dicts of tensors):
   and roll, resized; ``horizon``, ``water`` (W,) tan elevation per column of the levelled image; ``focal``
   () px/rad of the whole resized panorama. Training crops a random ``crop_width`` columns (the network is
   width-free).
-Test samples add ``true_*`` and ``classical_*`` entries, ``classical_ok`` and ``degraded``.
+Test samples add ``true_*`` and ``classical_*`` entries, ``classical_ok``, ``degraded`` and the frame ``index``.
 """
 
 from __future__ import annotations
@@ -125,6 +125,7 @@ class HorizonFrames(Dataset):
             sample["true_heading"] = value(self.truth, "heading")
             sample["classical_ok"] = torch.as_tensor(bool(self.labels["ok"][k]))
             sample["degraded"] = torch.as_tensor(bool(self.truth["degraded"][k]))
+            sample["index"] = torch.as_tensor(k)  # the frame, to merge results of distributed test runs
         return sample
 
 

@@ -19,6 +19,7 @@ import torch
 import torch.nn.functional as F
 from lightning.pytorch import Callback, LightningModule, Trainer
 
+from models.distributed import gather_rows
 from models.horizon.finder import HorizonFinder, sincos_to_angles
 from models.horizon.segmenter import HorizonSegmenter
 
@@ -58,7 +59,9 @@ class _HorizonSystem(LightningModule):
         self._test_outputs = []
 
     def _collect(self) -> dict[str, torch.Tensor]:
-        return {k: torch.cat([o[k] for o in self._test_outputs]) for k in self._test_outputs[0]}
+        """Per-frame test results of the whole test set, gathered over the ranks of a distributed run."""
+        local = {k: torch.cat([o[k] for o in self._test_outputs]) for k in self._test_outputs[0]}
+        return gather_rows(local, "index")
 
 
 class HorizonFinderSystem(_HorizonSystem):
@@ -118,7 +121,7 @@ class HorizonFinderSystem(_HorizonSystem):
             "roll": torch.rad2deg((roll - batch["true_roll"]).abs()),
             "classical_pitch": torch.rad2deg((batch["classical_pitch"] - batch["true_pitch"]).abs()),
             "classical_roll": torch.rad2deg((batch["classical_roll"] - batch["true_roll"]).abs()),
-            "classical_ok": batch["classical_ok"], "degraded": batch["degraded"],
+            "classical_ok": batch["classical_ok"], "degraded": batch["degraded"], "index": batch["index"],
         })
 
     def on_test_epoch_end(self) -> None:
@@ -202,7 +205,7 @@ class HorizonSegmenterSystem(_HorizonSystem):
         self._test_outputs.append({
             "horizon_px": horizon, "water_px": water, "classical_horizon_px": classical,
             "horizon_mrad": horizon * mrad, "water_mrad": water * mrad, "classical_horizon_mrad": classical * mrad,
-            "classical_ok": batch["classical_ok"], "degraded": batch["degraded"],
+            "classical_ok": batch["classical_ok"], "degraded": batch["degraded"], "index": batch["index"],
         })
 
     def on_test_epoch_end(self) -> None:

@@ -22,6 +22,7 @@ import torch.nn.functional as F
 from core.errors import InputError
 from models.backbones import build_backbone
 from models.checkpoint import read_checkpoint
+from models.distributed import gather_dicts, gather_objects
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder
 from models.vos.losses import segmentation_loss
@@ -199,8 +200,11 @@ class FRTMSegmentation(L.LightningModule):
         self._evaluate(batch)
 
     def _report(self, stage: str) -> dict[str, float]:
+        """J&F over every object of every sequence (gathered over the ranks of a distributed run) and FPS."""
+        self._eval = gather_dicts(self._eval)
+        frames, seconds = (sum(v) for v in zip(*gather_objects((self._frames, self._seconds)), strict=True))
         glob = summarize(self._eval)
-        fps = self._frames / max(self._seconds, 1e-9)
+        fps = frames / max(seconds, 1e-9)
         self.log_dict({f"{stage}/jf": glob["J&F-Mean"], f"{stage}/j": glob["J-Mean"], f"{stage}/f": glob["F-Mean"],
                        f"{stage}/fps": fps}, prog_bar=stage == "val")
         return {**glob, "FPS": fps}
@@ -213,7 +217,9 @@ class FRTMSegmentation(L.LightningModule):
         if not self._eval:
             return
         result = self._report("test")
-        log_dir = Path(self.trainer.log_dir or ".") if self.trainer is not None else Path(".")
+        log_dir = Path(self.trainer.log_dir or ".") if self.trainer is not None else Path(".")  # on every rank
+        if self.global_rank != 0:
+            return
         write_csv(self._eval, log_dir / "per_sequence.csv")
         print(f"J&F {100 * result['J&F-Mean']:.1f}  J {100 * result['J-Mean']:.1f}  F {100 * result['F-Mean']:.1f}  "
               f"FPS {result['FPS']:.2f}  ({len(self._eval)} sequences; per object: {log_dir / 'per_sequence.csv'})")

@@ -1,0 +1,109 @@
+"""train.py: DDP (2 CPU processes, gloo) fits a tiny FRTM and a tiny HorizonFinder, and ``test`` under DDP prints
+the metrics of one process on the same checkpoint; ``--ckpt_path`` is checked before Lightning starts."""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import lightning as L
+import pytest
+import torch
+
+from data.horizon.dataset import DatasetSettings, write_dataset
+from data.world.dem import generate_archipelago
+from models.horizon.lit import HorizonFinderSystem
+from models.vos.lit import FRTMSegmentation
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL_FINDER = {"backbone": "resnet18", "stage": "layer2", "heads": 2, "head_channels": 8, "channels": 16}
+TRACKER = {"channels": 8, "num_aug": 2, "memory_size": 4, "init_schedule": [2], "update_schedule": [2]}
+
+
+def checkpoint(system: L.LightningModule, path: Path) -> Path:
+    torch.save({"state_dict": system.state_dict(), "hyper_parameters": {
+        **system.hparams, "_class_path": f"{type(system).__module__}.{type(system).__name__}"},
+        "pytorch-lightning_version": L.__version__}, path)
+    return path
+
+
+def train_py(*args: str) -> str:
+    """stdout + stderr of ``python train.py args`` (asserting exit code 0)."""
+    proc = subprocess.run([sys.executable, "train.py", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc.stdout + proc.stderr
+
+
+def metrics(output: str) -> dict[str, float]:
+    """``test/...`` values of Lightning's result table."""
+    return {k: float(v) for k, v in re.findall(r"(test/[\w/&]+)[\s│|]+([-+0-9.eE]+)", output)}
+
+
+DDP = ["--trainer.accelerator", "cpu", "--trainer.strategy", "ddp", "--trainer.devices", "2"]
+SINGLE = ["--trainer.accelerator", "cpu", "--trainer.devices", "1"]
+
+
+@pytest.fixture(scope="module")
+def finder_config(tmp_path_factory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("finder")
+    dem = generate_archipelago(size_m=3000, cell=10, seed=3)
+    write_dataset(root / "data", dem, DatasetSettings(count=10, width=256, height=32, render_bins=512,
+                                                      label_bins=256, degraded_fraction=0.3, seed=4),
+                  batch=5, progress=False)
+    config = root / "finder.yaml"
+    config.write_text(f"""seed_everything: 0
+trainer: {{max_steps: 2, logger: false, enable_checkpointing: false, enable_progress_bar: false,
+          enable_model_summary: false, num_sanity_val_steps: 0, default_root_dir: {root / 'runs'}}}
+model:
+  class_path: models.horizon.lit.HorizonFinderSystem
+  init_args: {SMALL_FINDER}
+data:
+  class_path: data.horizon.datamodule.HorizonDataModule
+  init_args: {{root: {root / 'data'}, test_root: {root / 'data'}, task: finder, input_width: 256, create: false,
+              val_fraction: 0.3, batch_size: 3}}
+""")
+    torch.manual_seed(1)
+    return config, checkpoint(HorizonFinderSystem(**SMALL_FINDER), root / "finder.ckpt")
+
+
+@pytest.fixture(scope="module")
+def frtm_config(tmp_path_factory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("frtm")
+    config = root / "frtm.yaml"
+    config.write_text(f"""seed_everything: 0
+trainer: {{max_steps: 2, logger: false, enable_checkpointing: false, enable_progress_bar: false,
+          enable_model_summary: false, num_sanity_val_steps: 0, limit_val_batches: 0,
+          default_root_dir: {root / 'runs'}, inference_mode: false}}
+model:
+  class_path: models.vos.lit.FRTMSegmentation
+  init_args: {{mdim: 8, train_channels: 8, train_num_aug: 2, train_schedule: [2], tracker: {TRACKER}}}
+data:
+  class_path: data.vos.datamodule.SyntheticVOSDataModule
+  init_args: {{train_samples: 8, val_videos: 2, test_videos: 3, n_frames: 4, height: 48, width: 64,
+              batch_size: 2, n_distractors: 0}}
+""")
+    torch.manual_seed(1)
+    return config, checkpoint(FRTMSegmentation(mdim=8, train_channels=8, train_num_aug=2, train_schedule=[2],
+                                               tracker=TRACKER), root / "frtm.ckpt")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("system", ["finder", "frtm"])
+def test_ddp_fit_and_test_equal_one_process(system, request) -> None:
+    config, ckpt = request.getfixturevalue(f"{system}_config")
+    train_py("fit", "--config", str(config), *DDP)
+    one = metrics(train_py("test", "--config", str(config), "--ckpt_path", str(ckpt), *SINGLE))
+    two = metrics(train_py("test", "--config", str(config), "--ckpt_path", str(ckpt), *DDP))
+    key = "test/all/pitch_deg_median" if system == "finder" else "test/jf"
+    assert key in one and one.keys() - {"test/fps"} == two.keys() - {"test/fps"}
+    for name in one.keys() - {"test/fps"}:
+        assert two[name] == pytest.approx(one[name], rel=1e-6, abs=1e-9), name
+
+
+def test_ckpt_path_of_another_system_is_refused_before_lightning(finder_config, frtm_config, capsys) -> None:
+    from train import run
+
+    assert run(["test", "--config", str(finder_config[0]), "--ckpt_path", str(frtm_config[1])]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("train.py: error: --ckpt_path") and "FRTMSegmentation checkpoint" in err[-1]
