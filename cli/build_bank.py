@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from core.errors import InputError
+
 NAME = "build-bank"
 HELP = "Build the 1-D MOSSE filter bank over the sea of a DEM for horizon localisation."
 
@@ -28,13 +30,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--float32", action="store_true", help="store float32 spectra (default float16)")
     p.add_argument("--overwrite", action="store_true", help="replace another bank in --out")
     p.add_argument("--device", default="cpu", help="torch device for ray casting and training (default cpu)")
+    p.add_argument("--devices", type=int, default=1, metavar="N",
+                   help="build on N processes (Lightning DDP: N GPUs with --device cuda, else N CPU processes)")
 
 
 def run(args: argparse.Namespace) -> int:
     import time
 
     from data.horizon.metric_dem import load_metric_dem
+    from models.distributed import is_primary_process
     from models.horizon.filter_bank import BankSettings, build_filter_bank
+
+    if args.devices < 1:
+        raise InputError(f"--devices must be at least 1, got {args.devices}")
 
     dem = load_metric_dem(args.dem, sea_level=args.sea_level)
     start = time.perf_counter()
@@ -44,7 +52,10 @@ def run(args: argparse.Namespace) -> int:
     bank = build_filter_bank(dem, settings, args.out, bounds=tuple(args.bounds) if args.bounds else None,
                              storage_dtype="float32" if args.float32 else "float16", tile_points=args.tile_points,
                              source=str(args.dem),
-                             sea_level=args.sea_level, overwrite=args.overwrite, device=args.device)
+                             sea_level=args.sea_level, overwrite=args.overwrite, device=args.device,
+                             devices=args.devices)
+    if not is_primary_process():
+        return 0
     print(f"wrote {args.out}: {len(bank)} locations, {bank.nbytes / 1e6:.1f} MB, "
           f"in {time.perf_counter() - start:.1f} s")
     return 0

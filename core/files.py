@@ -21,9 +21,10 @@ ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
 def partial_name(path: Path) -> Path:
-    """The temporary name ``path`` is written under: ``.STEM.partial.SUFFIX`` beside it (hidden, so never taken
-    for the file; the suffix kept, so writers that choose a format by suffix still work)."""
-    return path.with_name(f".{path.stem}.partial{path.suffix}")
+    """The temporary name ``path`` is written under: ``.STEM.PID.partial.SUFFIX`` beside it (hidden, so never taken
+    for the file; the process id, so processes writing the same file do not collide; the suffix kept, so writers
+    that choose a format by suffix still work)."""
+    return path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
 
 
 def writable_folder(folder: str | Path) -> Path:

@@ -4,8 +4,22 @@ last batch with repeated samples) are dropped by their key."""
 
 from __future__ import annotations
 
+import os
+
 import torch
 import torch.distributed as dist
+
+
+def is_primary_process() -> bool:
+    """Whether this is the first process of a (possibly distributed) run: rank 0 on node 0, from the environment
+    Lightning and torchrun set for the other processes (so it is known before the process group exists)."""
+    return int(os.environ.get("LOCAL_RANK", 0)) == 0 and int(os.environ.get("NODE_RANK", 0)) == 0
+
+
+def barrier() -> None:
+    """Wait for every process of the distributed run (nothing outside one)."""
+    if world_size() > 1:
+        dist.barrier()
 
 
 def world_size() -> int:

@@ -8,7 +8,8 @@ A bank is a directory::
 
 Each chunk holds the sea locations of one tile of grid rows; chunks are opened with ``np.load(mmap_mode="r")``,
 so a bank of any size is matched chunk by chunk without loading it. A build interrupted part-way resumes:
-chunks already written (listed in ``bank.json``) are kept when the settings and the DEM are the same.
+chunks already written are kept when the settings and the DEM are the same (``bank.json`` of an unfinished build
+names them; its chunk list is written last).
 The DEM fingerprint (SHA-256 of the flooded heights and the geotransform) catches a bank used with another DEM.
 """
 
@@ -40,22 +41,30 @@ class BankChunk:
 
 
 class BankWriter:
-    """Writes a bank directory chunk by chunk; ``meta`` holds everything but the chunk list."""
+    """Writes a bank directory chunk by chunk; ``meta`` holds everything but the chunk list.
 
-    def __init__(self, path: str | Path, meta: dict, overwrite: bool = False) -> None:
+    Chunks are files written atomically, each complete once both of its files exist, so several processes can
+    write chunks of one bank at once (a distributed build) and a killed build keeps what it finished. The
+    manifest is written at the start without chunks (``complete: false``, it identifies the build) and again by
+    ``finish`` with the chunk list, last.
+    """
+
+    def __init__(self, path: str | Path, meta: dict, overwrite: bool = False, primary: bool = True) -> None:
         self.path = Path(path)
         if meta.get("storage_dtype") not in STORAGE_DTYPES:
             raise InputError(f"storage dtype must be one of {STORAGE_DTYPES}, got {meta.get('storage_dtype')!r}")
         self.meta = {"format": BANK_FORMAT, "version": BANK_VERSION, **meta, "chunks": [], "complete": False}
+        if not primary:  # another process of a distributed build: the primary one prepared the folder
+            return
         old = self._read_existing()
-        if old is not None:
-            same = all(old.get(k) == v for k, v in self.meta.items() if k not in ("chunks", "complete"))
-            if not same and not overwrite:
-                raise InputError(f"{self.path} holds another filter bank (other DEM or settings); "
-                                 "choose another --out or pass --overwrite")
-            if same:
-                self.meta["chunks"] = [c for c in old["chunks"] if self._chunk_ok(c)]
-        writable_folder(self.path / "chunks")
+        same = old is not None and all(old.get(k) == v for k, v in self.meta.items() if k not in ("chunks", "complete"))
+        if old is not None and not same and not overwrite:
+            raise InputError(f"{self.path} holds another filter bank (other DEM or settings); "
+                             "choose another --out or pass --overwrite")
+        chunks = writable_folder(self.path / "chunks")
+        if not same:  # a new build: chunks of another one must not be taken for this one's
+            for stale in chunks.glob("*.npy"):
+                stale.unlink()
         self._save_meta()
 
     def _read_existing(self) -> dict | None:
@@ -67,12 +76,12 @@ class BankWriter:
         except json.JSONDecodeError:
             return {}
 
-    def _chunk_ok(self, chunk: dict) -> bool:
-        return all((self.path / "chunks" / f"{kind}_{chunk['index']:05d}.npy").is_file()
-                   for kind in ("filters", "cells"))
+    def _chunk_files(self, index: int) -> tuple[Path, Path]:
+        return tuple(self.path / "chunks" / f"{kind}_{index:05d}.npy" for kind in ("filters", "cells"))
 
     def has_chunk(self, index: int) -> bool:
-        return any(c["index"] == index for c in self.meta["chunks"])
+        """Whether chunk ``index`` is complete on disk (both files, each written atomically)."""
+        return all(f.is_file() for f in self._chunk_files(index))
 
     def _save_meta(self) -> None:
         write_text(self.path / "bank.json", json.dumps(self.meta, indent=1))
@@ -83,20 +92,19 @@ class BankWriter:
         if filters.ndim != 2 or filters.shape[1] != k2 or cells.shape != (filters.shape[0], 2):
             raise InputError(f"chunk {index}: filters must be (L, {k2}) and cells (L, 2), got "
                              f"{filters.shape}, {cells.shape}")
-        for kind, array in (("filters", filters.astype(self.meta["storage_dtype"])),
-                            ("cells", cells.astype(np.int32))):
-            final = self.path / "chunks" / f"{kind}_{index:05d}.npy"
+        arrays = (filters.astype(self.meta["storage_dtype"]), cells.astype(np.int32))
+        for final, array in zip(self._chunk_files(index), arrays, strict=True):
             with atomic_path(final) as tmp:
                 np.save(tmp, array)
-        self.meta["chunks"] = [c for c in self.meta["chunks"] if c["index"] != index]
-        self.meta["chunks"].append({"index": index, "count": int(filters.shape[0])})
-        self.meta["chunks"].sort(key=lambda c: c["index"])
-        self._save_meta()
 
-    def finish(self) -> Path:
-        """Mark the bank complete and return its path. The manifest holds no timings, so a resumed build writes
-        the same bytes as an uninterrupted one."""
-        self.meta.update(complete=True)
+    def finish(self, chunks: int) -> Path:
+        """List chunks ``0 .. chunks - 1`` (all must be complete) in the manifest, mark the bank complete and return
+        its path. The manifest holds no timings, so a resumed build writes the same bytes as an uninterrupted one."""
+        missing = [i for i in range(chunks) if not self.has_chunk(i)]
+        if missing:
+            raise InputError(f"filter bank {self.path}: chunks {missing[:5]} were not written")
+        counts = [int(np.load(self._chunk_files(i)[1], mmap_mode="r").shape[0]) for i in range(chunks)]
+        self.meta.update(chunks=[{"index": i, "count": n} for i, n in enumerate(counts)], complete=True)
         self._save_meta()
         return self.path
 

@@ -34,6 +34,7 @@ from core.raycast import virtual_horizon
 from data.horizon.bank_io import BankWriter, FilterBank
 from data.world.dem import Dem, dem_fingerprint
 from models.dcf.mosse import Mosse, mosse_filter, mosse_train
+from models.distributed import barrier, is_primary_process
 
 
 @dataclass(frozen=True)
@@ -217,6 +218,60 @@ def sea_mask(dem: Dem, grid: BankGrid, rows: np.ndarray | None = None, cols: np.
     return (dem.height_at(xy) <= 0) & dem.contains(xy)
 
 
+class BankTiles:
+    """The tiles of a bank build (strips of whole grid rows, ray cast with a halo of neighbourhood rows): tile
+    ``index`` -> (filters (L, 2K) float32 (re, im) of ``H*``, grid cells (L, 2)) of its sea locations.
+
+    Args:
+        dem, settings, grid: the flooded DEM, the bank settings and the location grid.
+        tile_points: grid points per tile (memory: about ``tile_points * bins * 4`` bytes of horizons).
+        device: where to ray cast and train.
+    """
+
+    def __init__(self, dem: Dem, settings: BankSettings, grid: BankGrid, tile_points: int = 2**15,
+                 device: torch.device | str | None = None) -> None:
+        if tile_points < 1:
+            raise InputError(f"tile_points must be at least 1, got {tile_points}")
+        self.dem, self.settings, self.grid = dem, settings, grid
+        self.offsets = settings.sample_offsets()
+        self.halo = max(abs(dr) for dr, _ in self.offsets)
+        self.tile_rows = max(1, tile_points // grid.cols)
+        self.starts = list(range(0, grid.rows, self.tile_rows))
+        self.heights = torch.from_numpy(np.ascontiguousarray(dem.z, dtype=np.float32)).to(device)
+        self.ext_cols = np.arange(-self.halo, grid.cols + self.halo)
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    @torch.no_grad()
+    def __call__(self, index: int) -> tuple[np.ndarray, np.ndarray]:
+        dem, settings, grid, halo, heights = self.dem, self.settings, self.grid, self.halo, self.heights
+        r0 = self.starts[index]
+        r1 = min(r0 + self.tile_rows, grid.rows)
+        rows = np.arange(r0 - halo, r1 + halo)
+        sea = sea_mask(dem, grid, rows, self.ext_cols)
+        rr, cc = np.meshgrid(rows, self.ext_cols, indexing="ij")
+        positions = torch.from_numpy(grid.xy(rr[sea], cc[sea])).to(heights)
+        profiles = torch.zeros(*sea.shape, settings.bins, dtype=heights.dtype, device=heights.device)
+        if len(positions):
+            horizons = virtual_horizon(heights, dem.x0, dem.y0, dem.cell, positions, settings.camera_height,
+                                       settings.bins, settings.max_range, settings.ray_step or dem.cell)
+            profiles[torch.from_numpy(sea).to(heights.device)] = horizons.horizon
+        inner = np.zeros_like(sea)
+        inner[halo : halo + r1 - r0, halo : halo + grid.cols] = True
+        li, lj = np.nonzero(sea & inner)
+        filters = [np.zeros((0, 2 * settings.half_spectrum), np.float32)]
+        for s in range(0, len(li), 4096):
+            i, j = li[s : s + 4096], lj[s : s + 4096]
+            si = np.stack([i + dr for dr, _ in self.offsets], 1)
+            sj = np.stack([j + dc for _, dc in self.offsets], 1)
+            samples = profiles[torch.from_numpy(si), torch.from_numpy(sj)]
+            valid = torch.from_numpy(sea[si, sj]).to(heights.device)
+            H = train_location_filters(samples, valid, settings)
+            filters.append(torch.view_as_real(H).flatten(-2).cpu().numpy())
+        return np.concatenate(filters), np.stack([li - halo + r0, lj - halo], -1)
+
+
 def build_filter_bank(
     dem: Dem,
     settings: BankSettings,
@@ -229,6 +284,7 @@ def build_filter_bank(
     overwrite: bool = False,
     progress: bool = True,
     device: torch.device | str | None = None,
+    devices: int = 1,
 ) -> FilterBank:
     """Build and store the filter bank of every sea grid location (module docstring), tile by tile.
 
@@ -240,56 +296,34 @@ def build_filter_bank(
         storage_dtype: ``float16`` (half the size) or ``float32``.
         tile_points: grid points per tile (memory: about ``tile_points * bins * 4`` bytes of horizons).
         source, sea_level: recorded with the DEM fingerprint, for error messages.
-        device: where to ray cast and train (default CPU).
+        device: where to ray cast and train (default CPU); with ``devices`` > 1, ``cuda`` means GPUs.
+        devices: processes of a distributed build (Lightning DDP ``predict`` over the tiles,
+            ``models.horizon.bank_distributed``): each writes the chunks of its tiles, the first one the manifest
+            when all are done. The chunks equal a single process's with the same threads per process.
     Returns:
         The opened ``FilterBank``.
     """
-    if tile_points < 1:
-        raise InputError(f"tile_points must be at least 1, got {tile_points}")
     grid = bank_grid(dem, settings.spacing, bounds)
-    offsets = settings.sample_offsets()
-    halo = max(abs(dr) for dr, _ in offsets)
-    tile_rows = max(1, tile_points // grid.cols)
+    tiles = BankTiles(dem, settings, grid, tile_points, device if devices == 1 else None)
     meta = {
-        "settings": {**settings.to_dict(), "half_spectrum": settings.half_spectrum, "samples": len(offsets)},
+        "settings": {**settings.to_dict(), "half_spectrum": settings.half_spectrum, "samples": len(tiles.offsets)},
         "grid": asdict(grid),
         "bounds": list(bounds) if bounds is not None else None,
         "dem": {"fingerprint": dem_fingerprint(dem), "source": source, "sea_level": sea_level,
                 "shape": list(dem.z.shape), "cell": dem.cell, "crs": dem.crs},
         "storage_dtype": storage_dtype,
     }
-    writer = BankWriter(out, meta, overwrite)
-    heights = torch.from_numpy(np.ascontiguousarray(dem.z, dtype=np.float32)).to(device)
-    ext_cols = np.arange(-halo, grid.cols + halo)
-    tiles = list(range(0, grid.rows, tile_rows))
-    with torch.no_grad():
-        for index, r0 in enumerate(tqdm(tiles, desc="filter bank", unit="tile", disable=not progress)):
-            if writer.has_chunk(index):
-                continue
-            r1 = min(r0 + tile_rows, grid.rows)
-            rows = np.arange(r0 - halo, r1 + halo)
-            sea = sea_mask(dem, grid, rows, ext_cols)
-            rr, cc = np.meshgrid(rows, ext_cols, indexing="ij")
-            positions = torch.from_numpy(grid.xy(rr[sea], cc[sea])).to(heights)
-            profiles = torch.zeros(*sea.shape, settings.bins, dtype=heights.dtype, device=heights.device)
-            if len(positions):
-                horizons = virtual_horizon(heights, dem.x0, dem.y0, dem.cell, positions, settings.camera_height,
-                                           settings.bins, settings.max_range, settings.ray_step or dem.cell)
-                profiles[torch.from_numpy(sea).to(heights.device)] = horizons.horizon
-            inner = np.zeros_like(sea)
-            inner[halo : halo + r1 - r0, halo : halo + grid.cols] = True
-            li, lj = np.nonzero(sea & inner)
-            filters = []
-            for s in range(0, len(li), 4096):
-                i, j = li[s : s + 4096], lj[s : s + 4096]
-                si = np.stack([i + dr for dr, _ in offsets], 1)
-                sj = np.stack([j + dc for _, dc in offsets], 1)
-                samples = profiles[torch.from_numpy(si), torch.from_numpy(sj)]
-                valid = torch.from_numpy(sea[si, sj]).to(heights.device)
-                H = train_location_filters(samples, valid, settings)
-                filters.append(torch.view_as_real(H).flatten(-2).cpu().numpy())
-            k2 = 2 * settings.half_spectrum
-            writer.write_chunk(index, np.concatenate(filters) if filters else np.zeros((0, k2), np.float32),
-                               np.stack([li - halo + r0, lj - halo], -1))
-    writer.finish()
+    writer = BankWriter(out, meta, overwrite, primary=is_primary_process())
+    if devices > 1:
+        from models.horizon.bank_distributed import build_distributed
+
+        accelerator = "gpu" if str(device or "cpu").startswith("cuda") else "cpu"
+        if build_distributed(tiles, writer, devices, accelerator, progress):
+            writer.finish(len(tiles))
+        barrier()
+        return FilterBank(out)
+    for index in tqdm(range(len(tiles)), desc="filter bank", unit="tile", disable=not progress):
+        if not writer.has_chunk(index):
+            writer.write_chunk(index, *tiles(index))
+    writer.finish(len(tiles))
     return FilterBank(out)

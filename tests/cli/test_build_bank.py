@@ -40,3 +40,16 @@ def test_killed_build_resumes_to_the_same_bank(tmp_path):
     assert hit == 3
     whole = tree_bytes(tmp_path / "whole")
     assert len(whole) == 1 + 2 * 15 and tree_bytes(tmp_path / "killed") == whole
+
+
+@pytest.mark.slow
+def test_distributed_build_equals_one_process(tmp_path):
+    """``--devices 2``: two CPU processes (Lightning DDP, gloo) write the same bank, byte for byte."""
+    dem = generate_archipelago(size_m=1500, cell=10, seed=5, feature_scale_m=300, land_fraction=0.2, forest_height=0)
+    save_dem(tmp_path / "dem.tif", dem)
+    args = ["build-bank", "--dem", str(tmp_path / "dem.tif"), "--spacing", "10", "--bins", "128", "--max-range",
+            "600", "--tile-points", "1500"]
+    run_infer([*args, "--out", str(tmp_path / "one")])
+    run_infer([*args, "--devices", "2", "--out", str(tmp_path / "two")])
+    one = tree_bytes(tmp_path / "one")
+    assert len(one) == 1 + 2 * 15 and tree_bytes(tmp_path / "two") == one
