@@ -34,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
 
     from cli.report import print_report
     from core.cylinder import tangent_to_row
+    from core.files import write_npz
     from data.horizon.datamodule import read_full_panorama
     from models.builders import horizon_finder, horizon_segmenter
     from models.horizon.localizer import panorama_profiles
@@ -48,6 +49,6 @@ def run(args: argparse.Namespace) -> int:
               "horizon_row_median": float(np.median(tangent_to_row(torch.from_numpy(horizon), height, width))),
               "land_columns": int(np.sum(horizon - water > 2 * math.pi / width))}
     if args.out:
-        np.savez(args.out, pitch=pitch.item(), roll=roll.item(), horizon=horizon, water=water)
+        write_npz(args.out, pitch=np.array(pitch.item()), roll=np.array(roll.item()), horizon=horizon, water=water)
     print_report(report, args.json)
     return 0

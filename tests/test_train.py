@@ -107,3 +107,31 @@ def test_ckpt_path_of_another_system_is_refused_before_lightning(finder_config, 
     assert run(["test", "--config", str(finder_config[0]), "--ckpt_path", str(frtm_config[1])]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("train.py: error: --ckpt_path") and "FRTMSegmentation checkpoint" in err[-1]
+
+
+@pytest.mark.slow
+def test_killed_fit_resumes_from_last_ckpt(finder_config, tmp_path) -> None:
+    """A fit killed after its first epoch's ``last.ckpt`` continues from it (``--ckpt_path last``) and ends where an
+    uninterrupted fit of the same config ends: two epochs of steps."""
+    import os
+    import signal
+    import time
+
+    config, _ = finder_config
+    run = ["fit", "--config", str(config), *SINGLE, "--trainer.max_steps", "-1", "--trainer.max_epochs", "2",
+           "--trainer.enable_checkpointing", "true", "--trainer.default_root_dir", str(tmp_path),
+           "--trainer.callbacks+=ModelCheckpoint", "--trainer.callbacks.save_last=true",
+           "--trainer.callbacks.dirpath", str(tmp_path / "ckpt")]
+    last = tmp_path / "ckpt" / "last.ckpt"
+    proc = subprocess.Popen([sys.executable, "train.py", *run], cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    while proc.poll() is None and not last.is_file():
+        time.sleep(0.05)
+    if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    first = torch.load(last, weights_only=False)
+    output = train_py(*run, "--ckpt_path", "last")
+    second = torch.load(last, weights_only=False)
+    assert "Restoring states from the checkpoint path" in output and first["epoch"] == 0
+    assert second["epoch"] == 1 and second["global_step"] == 2 * first["global_step"] > 0

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from core.errors import InputError
+from core.files import atomic_path
 
 
 def write_overlay_video(
@@ -20,9 +21,15 @@ def write_overlay_video(
     trail: int = 5,
 ) -> None:
     """Write an MP4 (``mp4v``) of gray frames ``(H, W)`` in [0, 255] with tracks ``(T, P, 2)``, lost
-    ``(T, P)``."""
+    ``(T, P)`` (atomically: under a temporary name, renamed when complete)."""
     h, w = frames[0].shape
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+    with atomic_path(path) as tmp:
+        _write_video(tmp, frames, tracks, lost, fps, trail, (w, h), path)
+
+
+def _write_video(tmp: Path, frames: Sequence[np.ndarray], tracks: np.ndarray, lost: np.ndarray, fps: float,
+                 trail: int, size: tuple[int, int], path: str | Path) -> None:
+    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
     if not writer.isOpened():
         raise InputError(f"cannot open {path} for writing a video")
     try:
