@@ -28,14 +28,20 @@ def test_build_bank_missing_dem(tmp_path, capsys):
     assert "DEM file not found" in capsys.readouterr().err
 
 
-@pytest.mark.slow
-def test_killed_build_resumes_to_the_same_bank(tmp_path):
+@pytest.fixture(scope="module")
+def fifteen_tiles(tmp_path_factory) -> list[str]:
+    """build-bank arguments (no --out) of a 1.5 km map whose bank has 15 tiles (one bank.json, 2 files a tile)."""
+    root = tmp_path_factory.mktemp("bank_dem")
     dem = generate_archipelago(size_m=1500, cell=10, seed=5, feature_scale_m=300, land_fraction=0.2, forest_height=0)
-    save_dem(tmp_path / "dem.tif", dem)
-    args = ["build-bank", "--dem", str(tmp_path / "dem.tif"), "--spacing", "10", "--bins", "128", "--max-range",
-            "600", "--tile-points", "1500"]
-    run_infer([*args, "--out", str(tmp_path / "whole")])
-    hit = kill_and_resume([*args, "--out", str(tmp_path / "killed")], tmp_path / "killed", kills=3, seed=1,
+    save_dem(root / "dem.tif", dem)
+    return ["build-bank", "--dem", str(root / "dem.tif"), "--spacing", "10", "--bins", "128", "--max-range", "600",
+            "--tile-points", "1500"]
+
+
+@pytest.mark.slow
+def test_killed_build_resumes_to_the_same_bank(fifteen_tiles, tmp_path):
+    run_infer([*fifteen_tiles, "--out", str(tmp_path / "whole")])
+    hit = kill_and_resume([*fifteen_tiles, "--out", str(tmp_path / "killed")], tmp_path / "killed", kills=3, seed=1,
                           max_extra_s=0.3)
     assert hit == 3
     whole = tree_bytes(tmp_path / "whole")
@@ -43,13 +49,9 @@ def test_killed_build_resumes_to_the_same_bank(tmp_path):
 
 
 @pytest.mark.slow
-def test_distributed_build_equals_one_process(tmp_path):
+def test_distributed_build_equals_one_process(fifteen_tiles, tmp_path):
     """``--devices 2``: two CPU processes (Lightning DDP, gloo) write the same bank, byte for byte."""
-    dem = generate_archipelago(size_m=1500, cell=10, seed=5, feature_scale_m=300, land_fraction=0.2, forest_height=0)
-    save_dem(tmp_path / "dem.tif", dem)
-    args = ["build-bank", "--dem", str(tmp_path / "dem.tif"), "--spacing", "10", "--bins", "128", "--max-range",
-            "600", "--tile-points", "1500"]
-    run_infer([*args, "--out", str(tmp_path / "one")])
-    run_infer([*args, "--devices", "2", "--out", str(tmp_path / "two")])
+    run_infer([*fifteen_tiles, "--out", str(tmp_path / "one")])
+    run_infer([*fifteen_tiles, "--devices", "2", "--out", str(tmp_path / "two")])
     one = tree_bytes(tmp_path / "one")
     assert len(one) == 1 + 2 * 15 and tree_bytes(tmp_path / "two") == one
