@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet ".[dev,bench]"
 	touch $(STAMP)
 
+# make demo [ONLY="vos localization"] [QUICK=1]: every part (or some), full size (or the one-minute smoke run).
 demo: $(STAMP)
-	$(PY) infer.py demo
+	$(PY) infer.py demo $(if $(ONLY),--only $(ONLY)) $(if $(QUICK),--quick)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -17,7 +17,7 @@ from jsonargparse import ArgumentError
 from lightning.pytorch import LightningDataModule, LightningModule
 from lightning.pytorch.cli import LightningCLI
 
-from core.command import run_command
+from core.command import quiet_console, run_command
 from core.errors import InputError
 from models.checkpoint import check_checkpoint_fits, read_checkpoint
 
@@ -88,6 +88,7 @@ def run(args: list[str] | None = None) -> int:
     def fit_or_evaluate() -> None:
         main(args)
 
+    quiet_console()
     return run_command("train.py", fit_or_evaluate)
 
 

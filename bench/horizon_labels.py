@@ -89,20 +89,59 @@ def plot(reports_errors: dict[str, dict[str, np.ndarray]], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def demo() -> None:
-    """Small version: 6 clean and 6 degraded 1024 px panoramas on a 6 km archipelago."""
-    from data.horizon.dataset import DatasetSettings, write_dataset
+def plot_panoramas(roots: dict[str, Path], path: Path, frame: int = 0) -> None:
+    """Frame ``frame`` of each dataset with the ground-truth horizon and the classical pipeline's (rows)."""
+    import cv2
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from data.horizon.dataset import read_split
+
+    fig, axes = plt.subplots(len(roots), 1, figsize=(12, 1.9 * len(roots)), squeeze=False)
+    for ax, (name, root) in zip(axes[:, 0], roots.items(), strict=True):
+        image = cv2.cvtColor(cv2.imread(str(root / "images" / f"{frame:06d}.png")), cv2.COLOR_BGR2RGB)
+        truth, labels = read_split(root, "truth"), read_split(root, "labels")
+        ax.imshow(image)
+        ax.plot(truth["horizon_rows"][frame], color="lime", lw=1.2, label="ground truth")
+        verdict = "accepted" if labels["ok"][frame] else "rejected"
+        ax.plot(labels["horizon_rows"][frame], color="red", lw=0.9, ls="--", label=f"classical ({verdict})")
+        ax.set_title(f"{name} panorama", fontsize=9, loc="left")
+        ax.set_axis_off()
+        ax.legend(loc="lower right", fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def demo(report_dir: Path | None = None, quick: bool = False) -> list[tuple[str, str]]:
+    """Small version: 6 clean and 6 degraded 1024 px panoramas (3 of 512 px quick) on a 6 km archipelago. With
+    ``report_dir``, writes the error curves and two labelled panoramas there; returns the figures."""
+    from data.horizon.dataset import DatasetSettings, read_split, write_dataset
     from data.world.dem import generate_archipelago
 
     dem = generate_archipelago(size_m=6000, cell=10, seed=0)
-    reports = {}
+    reports, figures = {}, []
+    width = 512 if quick else 1024
     with tempfile.TemporaryDirectory() as tmp:
+        roots = {name: Path(tmp) / name for name in ("clean", "degraded")}
         for name, fraction in (("clean", 0.0), ("degraded", 1.0)):
-            settings = DatasetSettings(count=6, width=1024, height=128, degraded_fraction=fraction,
-                                       render_bins=2048, label_bins=1024, max_range_m=4000.0, seed=3)
-            write_dataset(Path(tmp) / name, dem, settings, progress=False)
-            reports[name] = evaluate(Path(tmp) / name)
-    print_table(reports)
+            settings = DatasetSettings(count=3 if quick else 6, width=width, height=width // 8,
+                                       degraded_fraction=fraction, render_bins=2 * width, label_bins=width,
+                                       max_range_m=4000.0, seed=3)
+            write_dataset(roots[name], dem, settings, progress=False)
+            reports[name] = evaluate(roots[name])
+        print_table(reports)
+        if report_dir is not None:
+            plot_panoramas(roots, report_dir / "horizon_panoramas.png")
+            plot({name: label_errors(read_split(r, "labels"), read_split(r, "truth")) for name, r in roots.items()},
+                 report_dir / "horizon_labels.png")
+            figures = [("horizon_panoramas.png", "A clean and a degraded (haze, noise, blur, glare) rendered panorama "
+                        "with the ground-truth horizon and the classical pipeline's fit"),
+                       ("horizon_labels.png", "Cumulative errors of the classical labels against the ground truth")]
+    return figures
 
 
 def main() -> None:

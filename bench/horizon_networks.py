@@ -87,8 +87,34 @@ def print_table(metrics: dict[str, float]) -> None:
             print(f"{key:>58}: {metrics[key]:.4g}")
 
 
-def demo() -> None:
-    """Tiny end-to-end run: render 32 + 12 panoramas (256 px), train both networks briefly, test them."""
+def plot_failures(metrics: dict[str, float], path: Path) -> None:
+    """Bar chart of the failure rates of the networks and of the classical pipeline, clean and degraded frames."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    labels, values = [], []
+    for net in ("finder", "segmenter"):
+        for subset in ("clean", "degraded"):
+            for who in ("failure_rate", "classical_failure_rate"):
+                key = f"{net}/{subset}/{who}"
+                if key in metrics:
+                    labels.append(f"{net}\n{subset}\n{'classical' if who.startswith('classical') else 'net'}")
+                    values.append(metrics[key])
+    ax.bar(range(len(values)), values, color=["C0", "C1"] * (len(values) // 2))
+    ax.set_xticks(range(len(values)), labels, fontsize=7)
+    ax.set_ylabel("failure rate")
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def demo(report_dir: Path | None = None, quick: bool = False) -> list[tuple[str, str]]:
+    """Tiny end-to-end run: render 32 + 12 panoramas (256 px), train both networks briefly (12 epochs, 3 quick),
+    test them. With ``report_dir``, writes the failure rates there; returns the figures."""
     from lightning.pytorch import Trainer, seed_everything
 
     from data.horizon.datamodule import HorizonDataModule
@@ -106,12 +132,17 @@ def demo() -> None:
             model = system(backbone="resnet18", stage="layer1", heads=2, head_channels=8, channels=16, lr=3e-3,
                            **extra)
             datamodule = HorizonDataModule(**data, task=name)
-            trainer = Trainer(accelerator="cpu", max_epochs=12, logger=False, enable_progress_bar=False,
+            trainer = Trainer(accelerator="cpu", max_epochs=3 if quick else 12, logger=False, enable_progress_bar=False,
                               enable_model_summary=False, enable_checkpointing=False, num_sanity_val_steps=0)
             trainer.fit(model, datamodule)
             result = trainer.test(model, datamodule, verbose=False)[0]
             metrics.update({f"{name}/{k.removeprefix('test/')}": v for k, v in result.items()})
     print_table(metrics)
+    if report_dir is None:
+        return []
+    plot_failures(metrics, report_dir / "horizon_networks.png")
+    return [("horizon_networks.png", "Failure rates of HorizonFinder and HorizonSegmenter (trained here for a few "
+             "seconds on classical labels) against the classical pipeline, on clean and degraded held-out frames")]
 
 
 def main() -> None:
@@ -133,27 +164,7 @@ def main() -> None:
     else:
         print_table(metrics)
     if args.plot:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(7, 3.5))
-        labels, values = [], []
-        for net in ("finder", "segmenter"):
-            for subset in ("clean", "degraded"):
-                for who in ("failure_rate", "classical_failure_rate"):
-                    key = f"{net}/{subset}/{who}"
-                    if key in metrics:
-                        labels.append(f"{net}\n{subset}\n{'classical' if who.startswith('classical') else 'net'}")
-                        values.append(metrics[key])
-        ax.bar(range(len(values)), values, color=["C0", "C1"] * (len(values) // 2))
-        ax.set_xticks(range(len(values)), labels, fontsize=7)
-        ax.set_ylabel("failure rate")
-        fig.tight_layout()
-        args.plot.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(args.plot, dpi=110)
-
+        plot_failures(metrics, args.plot)
 
 if __name__ == "__main__":
     main()

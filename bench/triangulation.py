@@ -208,16 +208,23 @@ def format_table(report: dict) -> str:
     return "\n".join(lines)
 
 
-def demo() -> None:
-    """Small side-by-side run for ``make demo``: the synthetic cube, then the real reconstruction when present."""
+def demo(report_dir: Path | None = None, quick: bool = False) -> list[tuple[str, str]]:
+    """Small side-by-side run for ``make demo``: the synthetic cube, then the real reconstruction when present.
+    With ``report_dir``, writes the error distributions there; returns the figures as (file name, caption)."""
     set_cpu_threads(1)
-    report, _ = run(points=20_000, repeats=2, pycolmap_points=2000, methods=DEFAULT_METHODS)
+    report, errors = run(points=5_000 if quick else 20_000, repeats=1 if quick else 2,
+                         pycolmap_points=500 if quick else 2000, methods=DEFAULT_METHODS)
     print(f"Triangulation, synthetic cube: {report['config']['points']} points, sigma = 1 px")
     print(format_table(report))
+    figures = []
+    if report_dir is not None:
+        plot(errors, report_dir / "triangulation.png", f"synthetic cube, {report['config']['points']} points")
+        figures.append(("triangulation.png", "3D error and reprojection error of every method on the synthetic "
+                        "cube (sigma = 1 px): the dogleg's errors are the smallest"))
     path = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "sfm" / "Balbianello.out"
     if not path.is_file():
         print("(../shared/data/sfm/Balbianello.out not found: real-data part skipped)")
-        return
+        return figures
     recon = read_bundler(path)
     print(f"\nTriangulation, {path.name} (bundle-adjusted points as reference), first 3 views of each track")
     print(f"{'method':<12}{'points':>8}{'3D err/radius med':>19}{'mean':>10}{'reproj RMS px':>15}")
@@ -225,6 +232,7 @@ def demo() -> None:
         r, _, _ = evaluate_reconstruction(recon, 3, method)
         print(f"{method:<12}{r['count']:>8}{r['err3d_median_rel']:>19.2e}{r['err3d_mean_rel']:>10.2e}"
               f"{r['reproj_rms']:>15.3f}")
+    return figures
 
 
 def main(argv: list[str] | None = None) -> None:

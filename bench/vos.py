@@ -229,15 +229,58 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def demo(train_seconds: float = 120.0, height: int = 96, width: int = 160) -> None:
+def plot_masks(model: FRTMSegmentation, video: tuple[str, torch.Tensor, torch.Tensor], path: str | Path,
+               columns: int = 6) -> None:
+    """Masks of every method over ``columns`` frames of one video, ground truth in the first row."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from data.vos.io import davis_palette
+
+    name, frames, labels = video
+    rows = {"ground truth": labels.clamp(0, 254)}
+    for method in METHODS:
+        if method == "first_frame_copy":
+            rows[method] = labels[:1].expand_as(labels).clamp(0, 254)
+        else:
+            tracker = model.make_tracker(use_decoder=method == "frtm")
+            rows[method] = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+    times = torch.linspace(0, frames.shape[0] - 1, columns).round().long().tolist()
+    palette = torch.tensor(davis_palette(), dtype=torch.float32).reshape(256, 3) / 255
+    fig, axes = plt.subplots(len(rows), columns, figsize=(1.9 * columns, 1.3 * len(rows)), squeeze=False)
+    for r, (method, masks) in enumerate(rows.items()):
+        for c, t in enumerate(times):
+            image = frames[t].permute(1, 2, 0).float() / 255
+            mask = masks[t].long()
+            colour = palette[mask]
+            alpha = (mask > 0).float()[..., None] * 0.55
+            axes[r, c].imshow((image * (1 - alpha) + colour * alpha).numpy())
+            axes[r, c].set_xticks([])
+            axes[r, c].set_yticks([])
+            if c == 0:
+                axes[r, c].set_ylabel(method.replace("_", " "), fontsize=7)
+            if r == 0:
+                axes[r, c].set_title(f"frame {t}", fontsize=7)
+    fig.suptitle(f"{name}: masks over the video", fontsize=8)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def demo(report_dir: Path | None = None, quick: bool = False, height: int = 96, width: int = 160) -> list:
     """Small train-and-segment run on synthetic videos, as in the paper: the frozen ImageNet EfficientNet-Lite0
-    backbone (the target model on its stride-8 stage), a small decoder trained for ``train_seconds`` with the
+    backbone (the target model on its stride-8 stage), a small decoder trained for 120 s (15 s quick) with the
     target model in the loop (train.py's loop), then the three methods on 2 held-out videos of ``height`` x
-    ``width`` px; prints the table. ``configs/frtm_lite0_davis2016_cpu.yaml`` is the real CPU training."""
+    ``width`` px; prints the table. With ``report_dir``, writes the masks over the frames and J&F against speed
+    there; returns the figures. ``configs/frtm_lite0_davis2016_cpu.yaml`` is the real CPU training."""
     import lightning as L
 
     from data.vos.datamodule import SyntheticVOSDataModule
 
+    train_seconds = 15.0 if quick else 120.0
     torch.manual_seed(0)
     model = FRTMSegmentation(backbone="efficientnet_lite0", weights="imagenet", feature_layer="layer2",
                              feature_norm="instance_l2", mdim=16, train_channels=16, train_num_aug=2,
@@ -252,12 +295,19 @@ def demo(train_seconds: float = 120.0, height: int = 96, width: int = 160) -> No
     trainer.fit(model, datamodule=data)
     print(f"trained the decoder {trainer.global_step} steps in <= {train_seconds:.0f} s on the frozen ImageNet "
           "EfficientNet-Lite0")
-    args = parse_args(["--videos", "2", "--max-frames", "12", "--height", str(height), "--width", str(width),
-                       "--objects", "2", "--distractors", "0", "--object-scale", "0.25", "0.45"])
+    args = parse_args(["--videos", "2", "--max-frames", "8" if quick else "12", "--height", str(height), "--width",
+                       str(width), "--objects", "2", "--distractors", "0", "--object-scale", "0.25", "0.45"])
     _, videos = load_videos(args)
     result = {"dataset": f"synthetic:2x{height}x{width}", "checkpoint": "demo (in memory)",
               "methods": {m: run_method(model.eval(), m, videos) for m in METHODS}}
     print_table(result)
+    if report_dir is None:
+        return []
+    plot_masks(model, videos[0], report_dir / "vos_masks.png")
+    plot(result, str(report_dir / "vos_speed.png"))
+    return [("vos_masks.png", "FRTM on a held-out synthetic video: the first-frame mask is given; frtm (target model "
+             "+ decoder), the target model alone and the first mask copied, over the frames"),
+            ("vos_speed.png", "J&F against frames per second of the three methods (same run)")]
 
 
 def main(argv: list[str] | None = None) -> int:

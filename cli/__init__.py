@@ -11,7 +11,7 @@ import argparse
 import importlib
 from collections.abc import Sequence
 
-from core.command import CommandParser, run_command
+from core.command import CommandParser, quiet_console, run_command
 
 #: Command modules in the order ``--help`` lists them.
 COMMANDS = ("triangulate", "render_dataset", "horizon_label", "horizon", "track", "segment", "build_bank",
@@ -39,4 +39,5 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse ``argv`` and run its command; input errors end as one line on stderr and exit code 2."""
     args = build_parser().parse_args(argv)
+    quiet_console()
     return run_command(f"infer.py {args.command}", lambda: args.run(args))

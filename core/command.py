@@ -4,7 +4,10 @@
 from __future__ import annotations
 
 import argparse
+import logging
+import re
 import sys
+import warnings
 from collections.abc import Callable
 
 from core.errors import InputError
@@ -30,3 +33,35 @@ def run_command(prog: str, run: Callable[[], int | None]) -> int:
         message = " ".join(str(err).split())  # one line, whatever the message held
         sys.stderr.write(f"{prog}: error: {message}\n")
         return EXIT_BAD_INPUT
+
+
+#: Known third-party warnings that say nothing about the user's run (messages as regular expressions).
+KNOWN_THIRD_PARTY_WARNINGS = (
+    r"`isinstance\(treespec, LeafSpec\)` is deprecated",  # lightning's pytree helper on torch >= 2.14
+    r"Found \d+ module\(s\) in eval mode at the start of training",  # frozen backbones are in eval mode on purpose
+    r"Use `@` matmul instead of `\*` mul operator",  # rasterio's affine transforms
+    r"The '\w+_dataloader' does not have many workers",  # data is synthetic or small; workers cost more
+    r"Using `DistributedSampler` with the dataloaders",  # metrics are gathered and de-duplicated (models/distributed)
+    r"`tensorboardX` has been removed as a dependency",  # the CSV logger is the intended default
+)
+
+
+#: Lightning's start-up banners and advertising tips (log messages as regular expressions).
+LIGHTNING_BANNERS = re.compile(r"^(💡 Tip:|(GPU|TPU|HPU|IPU) available|Seed set to|You are using a CUDA device)")
+
+
+class _DropBanners(logging.Filter):
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not LIGHTNING_BANNERS.match(record.getMessage())
+
+
+def quiet_console() -> None:
+    """One line per stage: Lightning's banners and tips and the known third-party warnings above are silenced;
+    Lightning's other messages (restoring a checkpoint, a stopped fit) and real warnings stay. For commands and
+    the demo, not for library use or tests."""
+    for name in ("lightning.pytorch.utilities.rank_zero", "lightning.fabric.utilities.rank_zero"):
+        logger = logging.getLogger(name)  # the loggers Lightning's rank_zero_info writes to, whenever it is imported
+        if not any(isinstance(f, _DropBanners) for f in logger.filters):
+            logger.addFilter(_DropBanners())
+    for message in KNOWN_THIRD_PARTY_WARNINGS:
+        warnings.filterwarnings("ignore", message=f".*{message}")
