@@ -121,6 +121,7 @@ def demo(report_dir: Path | None = None, quick: bool = False) -> list[tuple[str,
     from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 
     seed_everything(0)
+    epochs = 3 if quick else 12
     with tempfile.TemporaryDirectory() as tmp:
         data = dict(root=f"{tmp}/train", test_root=f"{tmp}/test", input_width=256, batch_size=8, count=32,
                     test_count=12, width=256, height=32, dem_size_m=3000.0, dem_cell_m=10.0,
@@ -132,7 +133,7 @@ def demo(report_dir: Path | None = None, quick: bool = False) -> list[tuple[str,
             model = system(backbone="resnet18", stage="layer1", heads=2, head_channels=8, channels=16, lr=3e-3,
                            **extra)
             datamodule = HorizonDataModule(**data, task=name)
-            trainer = Trainer(accelerator="cpu", max_epochs=3 if quick else 12, logger=False, enable_progress_bar=False,
+            trainer = Trainer(accelerator="cpu", max_epochs=epochs, logger=False, enable_progress_bar=False,
                               enable_model_summary=False, enable_checkpointing=False, num_sanity_val_steps=0)
             trainer.fit(model, datamodule)
             result = trainer.test(model, datamodule, verbose=False)[0]
