@@ -231,13 +231,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def plot_masks(model: FRTMSegmentation, video: tuple[str, torch.Tensor, torch.Tensor], path: str | Path,
                columns: int = 6) -> None:
-    """Masks of every method over ``columns`` frames of one video, ground truth in the first row."""
+    """Mask outlines of every method over ``columns`` frames of one video (one colour per object), ground truth
+    in the first row."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from data.vos.io import davis_palette
 
     name, frames, labels = video
     rows = {"ground truth": labels.clamp(0, 254)}
@@ -248,15 +247,16 @@ def plot_masks(model: FRTMSegmentation, video: tuple[str, torch.Tensor, torch.Te
             tracker = model.make_tracker(use_decoder=method == "frtm")
             rows[method] = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
     times = torch.linspace(0, frames.shape[0] - 1, columns).round().long().tolist()
-    palette = torch.tensor(davis_palette(), dtype=torch.float32).reshape(256, 3) / 255
+    ids = [k for k in labels[0].unique().tolist() if 0 < k < 255]
+    outline = ["yellow", "cyan", "magenta", "orange"]
     fig, axes = plt.subplots(len(rows), columns, figsize=(1.9 * columns, 1.3 * len(rows)), squeeze=False)
     for r, (method, masks) in enumerate(rows.items()):
         for c, t in enumerate(times):
-            image = frames[t].permute(1, 2, 0).float() / 255
-            mask = masks[t].long()
-            colour = palette[mask]
-            alpha = (mask > 0).float()[..., None] * 0.55
-            axes[r, c].imshow((image * (1 - alpha) + colour * alpha).numpy())
+            axes[r, c].imshow(frames[t].permute(1, 2, 0).numpy())
+            for i, k in enumerate(ids):  # each object's outline in its own colour
+                if (masks[t] == k).any():
+                    axes[r, c].contour((masks[t] == k).numpy(), levels=[0.5], colors=[outline[i % len(outline)]],
+                                       linewidths=1.3)
             axes[r, c].set_xticks([])
             axes[r, c].set_yticks([])
             if c == 0:
