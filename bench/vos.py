@@ -275,7 +275,8 @@ def demo(report_dir: Path | None = None, quick: bool = False, height: int = 96, 
     backbone (the target model on its stride-8 stage), a small decoder trained for 400 steps (50 quick; stopped
     after 300 s on a slow machine) with the target model in the loop (train.py's loop), then the three methods on
     2 held-out videos of ``height`` x ``width`` px; prints the table. With ``report_dir``, writes the masks over
-    the frames and J&F against speed there; returns the figures. ``configs/frtm_lite0_davis2016_cpu.yaml`` is the real CPU training."""
+    the frames and J&F against speed there; returns the figures. ``configs/frtm_lite0_davis2016_cpu.yaml`` is the
+    real CPU training."""
     import lightning as L
 
     from data.vos.datamodule import SyntheticVOSDataModule
