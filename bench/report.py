@@ -32,10 +32,11 @@ def report_html(parts: list[DemoPart], total_seconds: float) -> str:
     rows = "".join(f"<li><a href=\"#{p.name}\">{html.escape(p.title)}</a> ({p.seconds:.0f} s)</li>" for p in parts)
     sections = []
     for p in parts:
+        text = html.escape(p.text.strip("\n"))  # keep the tables' leading spaces
         figures = "".join(f"<figure><img src=\"{html.escape(f)}\" alt=\"{html.escape(c)}\"/>"
                           f"<figcaption>{html.escape(c)}</figcaption></figure>" for f, c in p.figures)
         sections.append(f"<section id=\"{p.name}\"><h2>{html.escape(p.title)}</h2>"
-                        f"<p>{p.seconds:.0f} s on this machine.</p><pre>{html.escape(p.text.strip(chr(10)))}</pre>"
+                        f"<p>{p.seconds:.0f} s on this machine.</p><pre>{text}</pre>"
                         f"{figures}</section>")
     return (f"<!DOCTYPE html>\n<html xmlns=\"http://www.w3.org/1999/xhtml\" lang=\"en\"><head><meta charset=\"utf-8\"/>"
             f"<title>{TITLE}</title><style>{STYLE}</style></head><body><h1>{TITLE}</h1>"
