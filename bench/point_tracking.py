@@ -272,11 +272,13 @@ def demo(report_dir: Path | None = None, quick: bool = False) -> list[tuple[str,
              "and KLT on the same sequence")]
 
 
-def main(argv: list[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
+    """The benchmark's arguments (``--sintel`` may be given several times; all folders count)."""
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--sintel", nargs="*", default=[], help="Sintel folders (frames plus gt/)")
+    parser.add_argument("--sintel", nargs="+", action="extend", default=[], metavar="DIR",
+                        help="Sintel folders (frames plus gt/); repeat or list several")
     parser.add_argument("--synthetic", action="store_true", help="add the synthetic sequence")
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")
@@ -297,6 +299,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="timed runs per method; the best one counts")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
     parser.add_argument("--plot", help="write EPE distributions and precision curves to this PNG")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.repeats < 1:
         parser.error("--repeats must be at least 1")

@@ -45,3 +45,10 @@ def test_repeats_must_be_positive(capsys):
     with pytest.raises(SystemExit) as err:
         point_tracking.main(["--synthetic", "--repeats", "0"])
     assert err.value.code == 2 and "--repeats must be at least 1" in capsys.readouterr().err
+
+
+def test_every_sintel_folder_counts():
+    """``--sintel A --sintel B C`` keeps all three folders (argparse ``extend``, not the last option only)."""
+    args = point_tracking.build_parser().parse_args(["--sintel", "A", "--sintel", "B", "C"])
+    assert args.sintel == ["A", "B", "C"]
+    assert point_tracking.build_parser().parse_args([]).sintel == []
