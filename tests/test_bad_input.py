@@ -9,7 +9,6 @@ import shutil
 from pathlib import Path
 
 import cv2
-import lightning as L
 import numpy as np
 import pytest
 import torch
@@ -20,16 +19,11 @@ from data.world.dem import generate_archipelago, save_dem
 from models.horizon.lit import HorizonFinderSystem
 from models.vos.lit import FRTMSegmentation
 from tests.cli.test_triangulate import write_bundler
+from tests.models.test_checkpoint import save_checkpoint
 
 SMALL_FINDER = {"backbone": "resnet18", "stage": "layer2", "heads": 2, "head_channels": 8, "channels": 16}
 TINY_FRTM = {"mdim": 8, "tracker": {"channels": 8, "num_aug": 2, "memory_size": 4, "init_schedule": [2],
                                     "update_schedule": [2]}}
-
-
-def _checkpoint(system: L.LightningModule, path: Path) -> None:
-    torch.save({"state_dict": system.state_dict(), "hyper_parameters": {**system.hparams,
-                "_class_path": f"{type(system).__module__}.{type(system).__name__}"},
-                "pytorch-lightning_version": L.__version__}, path)
 
 
 @pytest.fixture(scope="module")
@@ -112,9 +106,9 @@ def files(tmp_path_factory) -> dict[str, str]:
     f["video_broken"] = str(vbroken)
     # checkpoints
     torch.manual_seed(0)
-    _checkpoint(FRTMSegmentation(**TINY_FRTM), root / "frtm.ckpt")
+    save_checkpoint(FRTMSegmentation(**TINY_FRTM), root / "frtm.ckpt")
     f["frtm_ckpt"] = str(root / "frtm.ckpt")
-    _checkpoint(HorizonFinderSystem(**SMALL_FINDER), root / "finder.ckpt")
+    save_checkpoint(HorizonFinderSystem(**SMALL_FINDER), root / "finder.ckpt")
     f["finder_ckpt"] = str(root / "finder.ckpt")
     (root / "garbage.ckpt").write_bytes(b"PK\x03\x04 not a zip")
     f["corrupt_ckpt"] = str(root / "garbage.ckpt")

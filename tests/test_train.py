@@ -6,7 +6,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import lightning as L
 import pytest
 import torch
 
@@ -14,17 +13,11 @@ from data.horizon.dataset import DatasetSettings, write_dataset
 from data.world.dem import generate_archipelago
 from models.horizon.lit import HorizonFinderSystem
 from models.vos.lit import FRTMSegmentation
+from tests.models.test_checkpoint import save_checkpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL_FINDER = {"backbone": "resnet18", "stage": "layer2", "heads": 2, "head_channels": 8, "channels": 16}
 TRACKER = {"channels": 8, "num_aug": 2, "memory_size": 4, "init_schedule": [2], "update_schedule": [2]}
-
-
-def checkpoint(system: L.LightningModule, path: Path) -> Path:
-    torch.save({"state_dict": system.state_dict(), "hyper_parameters": {
-        **system.hparams, "_class_path": f"{type(system).__module__}.{type(system).__name__}"},
-        "pytorch-lightning_version": L.__version__}, path)
-    return path
 
 
 def train_py(*args: str) -> str:
@@ -64,7 +57,7 @@ data:
               val_fraction: 0.3, batch_size: 3}}
 """)
     torch.manual_seed(1)
-    return config, checkpoint(HorizonFinderSystem(**SMALL_FINDER), root / "finder.ckpt")
+    return config, save_checkpoint(HorizonFinderSystem(**SMALL_FINDER), root / "finder.ckpt")
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +77,7 @@ data:
               batch_size: 2, n_distractors: 0}}
 """)
     torch.manual_seed(1)
-    return config, checkpoint(FRTMSegmentation(mdim=8, train_channels=8, train_num_aug=2, train_schedule=[2],
+    return config, save_checkpoint(FRTMSegmentation(mdim=8, train_channels=8, train_num_aug=2, train_schedule=[2],
                                                tracker=TRACKER), root / "frtm.ckpt")
 
 

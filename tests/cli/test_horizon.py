@@ -13,6 +13,7 @@ import infer
 from export.horizon_onnx import export_horizon
 from models.builders import horizon_finder
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
+from tests.models.test_checkpoint import save_checkpoint
 
 TINY = {"backbone": "resnet18", "stage": "layer1", "heads": 2, "head_channels": 4, "channels": 8}
 
@@ -20,7 +21,6 @@ TINY = {"backbone": "resnet18", "stage": "layer1", "heads": 2, "head_channels": 
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory):
     """A 32 x 256 panorama (sky over sea with a darker island band) and checkpoints of both networks."""
-    import lightning
 
     root = tmp_path_factory.mktemp("horizon_cli")
     rows = np.linspace(0.0, 1.0, 32)[:, None, None]
@@ -30,8 +30,7 @@ def scene(tmp_path_factory):
     torch.manual_seed(0)
     for name, system_class in (("finder", HorizonFinderSystem), ("segmenter", HorizonSegmenterSystem)):
         system = system_class(**TINY)
-        torch.save({"state_dict": system.state_dict(), "hyper_parameters": dict(system.hparams),
-                    "pytorch-lightning_version": lightning.__version__}, root / f"{name}.ckpt")
+        save_checkpoint(system, root / f"{name}.ckpt")
     return root
 
 

@@ -3,7 +3,6 @@ DAVIS run resumes to the same masks and scores."""
 
 from pathlib import Path
 
-import lightning
 import numpy as np
 import pytest
 import torch
@@ -14,6 +13,7 @@ from data.vos.io import read_mask, write_mask
 from data.vos.synthetic import synthetic_video
 from models.vos.lit import FRTMSegmentation
 from tests.cli.conftest import kill_and_resume, run_infer, tree_bytes
+from tests.models.test_checkpoint import save_checkpoint
 
 TRACKER = {"channels": 8, "num_aug": 2, "memory_size": 6, "init_schedule": [2], "update_schedule": [2]}
 
@@ -31,8 +31,7 @@ def video(tmp_path_factory) -> Path:
     (root / "broken.jpg").write_bytes(b"\xff\xd8 not really a jpeg")
     torch.manual_seed(0)
     model = FRTMSegmentation(mdim=8, tracker=TRACKER)
-    torch.save({"state_dict": model.state_dict(), "hyper_parameters": dict(model.hparams),
-                "pytorch-lightning_version": lightning.__version__}, root / "model.ckpt")
+    save_checkpoint(model, root / "model.ckpt")
     return root
 
 

@@ -11,10 +11,13 @@ from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 SMALL = {"backbone": "resnet18", "stage": "layer2", "heads": 2, "head_channels": 8, "channels": 16}
 
 
-def save_checkpoint(system: L.LightningModule, path, **extra) -> None:
-    """A checkpoint as Lightning writes it (state dict, hyper-parameters, version)."""
-    torch.save({"state_dict": system.state_dict(), "hyper_parameters": dict(system.hparams),
+def save_checkpoint(system: L.LightningModule, path, **extra):
+    """A checkpoint as LightningCLI writes it (state dict, hyper-parameters with the class path, version);
+    returns ``path``."""
+    hparams = {**system.hparams, "_class_path": f"{type(system).__module__}.{type(system).__name__}"}
+    torch.save({"state_dict": system.state_dict(), "hyper_parameters": hparams,
                 "pytorch-lightning_version": L.__version__, **extra}, path)
+    return path
 
 
 def test_load_system_restores_the_weights(tmp_path) -> None:
