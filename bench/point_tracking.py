@@ -33,7 +33,7 @@ import numpy as np
 import torch
 
 from core.threads import cpu_threads
-from data.flow import read_sintel_sequence, synthetic_sequence, tracks_from_flow
+from data.flow import STRESS_CONDITIONS, read_sintel_sequence, stress_sequence, synthetic_sequence, tracks_from_flow
 from models.tracking import PointTracker, good_features_to_track
 from models.tracking.klt import klt_track
 
@@ -77,6 +77,16 @@ def sintel_dataset(folder: str | Path, n_points: int) -> Dataset:
 def synthetic_dataset(n_frames: int, n_points: int, seed: int = 0) -> Dataset:
     """Synthetic sequence (large motion, blur, noise, brightness change), ground truth at the last frame."""
     seq = synthetic_sequence(frames=n_frames, seed=seed)
+    frames = seq.frames.round().clip(0, 255).astype(np.uint8)
+    points = detect(frames[0], n_points)
+    tracks, valid = seq.track(points)
+    return Dataset(frames, points, tracks[-1], valid[-1])
+
+
+def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0) -> Dataset:
+    """The synthetic sequence under one stress condition (:mod:`data.flow.stress`), ground truth at the last
+    frame."""
+    seq = stress_sequence(condition, frames=n_frames, seed=seed)
     frames = seq.frames.round().clip(0, 255).astype(np.uint8)
     points = detect(frames[0], n_points)
     tracks, valid = seq.track(points)
@@ -280,6 +290,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--sintel", nargs="+", action="extend", default=[], metavar="DIR",
                         help="Sintel folders (frames plus gt/); repeat or list several")
     parser.add_argument("--synthetic", action="store_true", help="add the synthetic sequence")
+    parser.add_argument("--stress", nargs="*", choices=STRESS_CONDITIONS, metavar="CONDITION",
+                        help="add synthetic stress conditions (all without names): " + ", ".join(STRESS_CONDITIONS))
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
@@ -311,9 +323,11 @@ def main(argv: list[str] | None = None) -> int:
         datasets = {}
         for folder in args.sintel:
             path = Path(folder)
-            datasets[f"sintel_{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points)
-        if args.synthetic or not datasets:
+            datasets[f"{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points)
+        if args.synthetic or not (datasets or args.stress is not None):
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed)
+        for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:
+            datasets[f"stress_{condition}"] = stress_dataset(condition, args.frames, args.points, args.seed)
         methods = [*args.methods, *([COMPILED] if args.compile else [])]
         result = evaluate(datasets, methods, args.device, args.repeats)
     if args.plot:

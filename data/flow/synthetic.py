@@ -108,6 +108,23 @@ def _texture(rng: np.random.Generator, height: int, width: int) -> np.ndarray:
     return 128 + tex * (45 / (tex.std() + 1e-6))
 
 
+def _render(tex: np.ndarray, texture_xy: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """The texture sampled (bicubic) at ``(H * W, 2)`` texture coordinates, as an ``(H, W)`` image."""
+    mx = texture_xy[:, 0].reshape(size).astype(np.float32)
+    my = texture_xy[:, 1].reshape(size).astype(np.float32)
+    return cv2.remap(tex, mx, my, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+
+
+def _exposure_maps(maps: list[np.ndarray], t: int, exposure: float, samples: int = 9) -> list[np.ndarray]:
+    """Texture coordinates of every pixel at ``samples`` instants in ``[t - exposure / 2, t + exposure / 2]``,
+    linear between the frames' warps (the one-sided difference at the first and last frame)."""
+    if exposure == 0:
+        return [maps[t]]
+    after = maps[t + 1] - maps[t] if t + 1 < len(maps) else maps[t] - maps[t - 1]
+    before = maps[t] - maps[t - 1] if t > 0 else after
+    return [maps[t] + s * (after if s > 0 else before) for s in np.linspace(-exposure / 2, exposure / 2, samples)]
+
+
 def synthetic_sequence(
     frames: int = 24,
     size: tuple[int, int] = (384, 512),
@@ -116,6 +133,7 @@ def synthetic_sequence(
     noise: float = 3.0,
     brightness: float = 0.25,
     seed: int = 0,
+    exposure: float = 0.0,
 ) -> SyntheticSequence:
     """Render a sequence.
 
@@ -127,9 +145,14 @@ def synthetic_sequence(
         noise: Gaussian noise std (gray levels).
         brightness: amplitude of the smooth relative gain change (offset changes by ``60 * brightness``).
         seed: random seed; the same arguments give the same sequence.
+        exposure: motion blur, as the fraction of the frame interval the shutter is open (0: none). Frame
+            ``t`` averages 9 renders along the warp from ``t - exposure / 2`` to ``t + exposure / 2`` (linear
+            between frames), so the blur follows each pixel's own motion and is centred on the ground truth.
     """
     if frames < 2 or min(size) < 32:
         raise InputError(f"need at least 2 frames of at least 32x32 pixels, got {frames} frames of {size}")
+    if not 0 <= exposure <= 1:
+        raise InputError(f"exposure must lie in [0, 1] (a fraction of the frame interval), got {exposure}")
     rng = np.random.default_rng(seed)
     h, w = size
     t = np.arange(frames, dtype=np.float64)
@@ -163,10 +186,8 @@ def synthetic_sequence(
     gain = 1 + brightness * np.sin(2 * np.pi * t / period[5] + phase0[5])
     offset = 60 * brightness * np.cos(2 * np.pi * t / (1.3 * period[5]))
     out = np.empty((frames, h, w), np.float32)
-    for i, m in enumerate(maps):
-        mx = (m[:, 0] - lo[0]).reshape(h, w).astype(np.float32)
-        my = (m[:, 1] - lo[1]).reshape(h, w).astype(np.float32)
-        img = cv2.remap(tex, mx, my, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    for i in range(frames):
+        img = np.mean([_render(tex, m - lo, (h, w)) for m in _exposure_maps(maps, i, exposure)], 0)
         sigma = rng.uniform(0, blur)
         if sigma > 0.2:
             img = cv2.GaussianBlur(img, (0, 0), sigma)

@@ -4,7 +4,9 @@ pyramid level, searched coarse to fine.
 Per frame: build a 3-level pyramid; from the coarsest level down, extract every point's patch at its current
 estimate (one gather for all points), correlate with that level's filter, find the peak and add the scaled
 shift. Points whose level-0 PSR falls below a threshold or that leave the image are flagged lost and
-frozen at their last position. Then the filters of the points still tracked learn, with weight ``eta``, a
+frozen at their last position; the PSR threshold is relative to the frame's other points, so a frame that is
+dark, blurred or compressed throughout does not lose its points, while a point whose peak collapses against the
+rest (occlusion) does. Then the filters of the points still tracked learn, with weight ``eta``, a
 sample at the new position: the search sample shifted in the Fourier domain.
 
 Cost: the patches are small (default 21, 15 and 25 px from fine to coarse: the finest sets the accuracy, the
@@ -134,7 +136,9 @@ class PointTracker(nn.Module):
         reg_rel: regulariser relative to the mean sample energy (``beta^2`` / ``eps``).
         newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
         level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
-        psr_threshold: points whose level-0 PSR falls below this are lost. psr_exclude: PSR exclusion window.
+        psr_relative, psr_threshold: a point is lost when its level-0 PSR falls below ``psr_relative`` times the
+        geometric mean PSR of the frame's tracked points, or below ``psr_threshold`` (see
+        :meth:`_lost_threshold`). psr_exclude: PSR exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
         the sample spectra and the transforms shrink with it.
@@ -149,7 +153,8 @@ class PointTracker(nn.Module):
         eta: float | None = None,
         reg_rel: float = 1e-2,
         newton_iterations: int | tuple[int, ...] = (2, 0, 0),
-        psr_threshold: float = 5.0,
+        psr_threshold: float = 2.5,
+        psr_relative: float = 0.2,
         psr_exclude: int = 7,
         band: float | tuple[float, ...] = 0.7,
     ) -> None:
@@ -163,6 +168,7 @@ class PointTracker(nn.Module):
         self.method, self.levels = method, levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
+        self.psr_relative = psr_relative
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
@@ -293,7 +299,8 @@ class PointTracker(nn.Module):
             centres.insert(0, centre)
         psr = interleaved_psr(score, self.psr_exclude, argmax)
         moved = start + d
-        lost = lost | ~self._inside(moved, frame) | ~(psr >= self.psr_threshold)
+        lost = lost | ~self._inside(moved, frame)
+        lost = lost | ~(psr >= self._lost_threshold(psr, lost))
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
         # Training samples at the new positions: the search samples shifted in the Fourier domain (as C-COT
         # centres its samples on the target), cheaper than extracting again and at least as accurate.
@@ -304,6 +311,16 @@ class PointTracker(nn.Module):
             shift = (target + 0.5) / 2**level - 0.5 - centres[level]
             updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
         return positions, lost, psr, *updated
+
+    def _lost_threshold(self, psr: Tensor, lost: Tensor) -> Tensor:
+        """The PSR below which a point is lost in this frame: ``psr_relative`` times the geometric mean PSR of the
+        points still tracked, at least ``psr_threshold``. Relative to the frame, the decision follows what
+        lowers every point's PSR alike (darkness, blur, compression) and flags the points whose peak collapses
+        against the rest (occlusion, a wrong match)."""
+        tracked = (~lost & torch.isfinite(psr)).to(psr.dtype)
+        log_psr = torch.log(torch.where(tracked > 0, psr, torch.ones_like(psr)).clamp_min(1e-3)) * tracked
+        mean = torch.exp(log_psr.sum() / tracked.sum().clamp_min(1))
+        return torch.clamp_min(self.psr_relative * mean, self.psr_threshold)
 
     def step(self, frame: Tensor, state: TrackerState, compile: bool = False) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``; ``compile``: run :meth:`forward` through

@@ -1,0 +1,85 @@
+"""Synthetic stress conditions for point tracking: the synthetic sequence (:func:`synthetic_sequence`) under one
+hard imaging condition each, with the same exact ground truth. Every condition starts from a moderate motion (up
+to about 8 px per frame) and changes one thing:
+
+- ``dark``: low light, the scene at 15 % of its brightness with shot noise (std ``sqrt(0.6 s)`` for a signal of
+  ``s`` gray levels) and read noise (std 1.5), so the texture's contrast is a few gray levels;
+- ``low_contrast``: the image compressed to a quarter of its contrast around mid-gray, with the usual noise;
+- ``motion_blur``: motion up to about 15 px per frame with the shutter open 80 % of the frame interval (blur
+  along every pixel's own motion, streaks of up to about 12 px), no defocus blur;
+- ``fast_motion``: translations up to about 40 px per frame;
+- ``illumination``: a global gain ramp from 1.0 down to 0.4 with a moving spatial light gradient (a linear
+  shading of +-35 % that rotates over the sequence);
+- ``jpeg``: every frame JPEG-compressed at quality 15 (blocking and ringing);
+- ``long``: 60 frames, for drift and sample-memory effects over a long run.
+
+Every condition is seeded: the same (condition, seed, size) gives the same frames.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from core.errors import InputError
+from data.flow.synthetic import SyntheticSequence, synthetic_sequence
+
+STRESS_CONDITIONS = ("dark", "low_contrast", "motion_blur", "fast_motion", "illumination", "jpeg", "long")
+
+# synthetic_sequence arguments per condition, on top of a moderate base motion (8 px per frame), so that each
+# condition isolates one difficulty
+_BASE = {"max_motion": 8.0}
+_RENDER = {
+    "dark": {"noise": 0.0},
+    "low_contrast": {},
+    "motion_blur": {"max_motion": 15.0, "exposure": 0.8, "blur": 0.0},
+    "fast_motion": {"max_motion": 40.0},
+    "illumination": {"brightness": 0.0},
+    "jpeg": {},
+    "long": {"frames": 60},
+}
+
+
+def _dark(frames: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    signal = 0.15 * frames
+    return signal + rng.normal(0, 1, frames.shape) * np.sqrt(0.6 * signal + 1.5**2)
+
+
+def _low_contrast(frames: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    return 128 + 0.25 * (frames - 128)
+
+
+def _illumination(frames: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    t, h, w = frames.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    u, v = (xs - w / 2) / (w / 2), (ys - h / 2) / (h / 2)  # [-1, 1]
+    angle = rng.uniform(0, 2 * np.pi) + np.linspace(0, np.pi, t)
+    gain = np.linspace(1.0, 0.4, t)
+    shading = 1 + 0.35 * (np.cos(angle)[:, None, None] * u + np.sin(angle)[:, None, None] * v)
+    return frames * gain[:, None, None] * shading
+
+
+def _jpeg(frames: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    out = np.empty_like(frames)
+    for i, frame in enumerate(frames.round().clip(0, 255).astype(np.uint8)):
+        ok, data = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 15])
+        out[i] = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE)
+    return out
+
+
+_POST = {"dark": _dark, "low_contrast": _low_contrast, "illumination": _illumination, "jpeg": _jpeg}
+
+
+def stress_sequence(
+    condition: str, frames: int = 24, size: tuple[int, int] = (384, 512), seed: int = 0
+) -> SyntheticSequence:
+    """The synthetic sequence under ``condition`` (one of :data:`STRESS_CONDITIONS`); ``frames`` is ignored by
+    ``long`` (60 frames). Frames ``(T, H, W)`` float32 in [0, 255], ground truth as the plain sequence's."""
+    if condition not in STRESS_CONDITIONS:
+        raise InputError(f"unknown stress condition {condition!r}; choose one of {', '.join(STRESS_CONDITIONS)}")
+    render = {"frames": frames, "size": size, "seed": seed, **_BASE, **_RENDER[condition]}
+    seq = synthetic_sequence(**render)
+    if condition in _POST:
+        rng = np.random.default_rng([seed, STRESS_CONDITIONS.index(condition)])
+        seq.frames = np.clip(_POST[condition](seq.frames.astype(np.float64), rng), 0, 255).astype(np.float32)
+    return seq
