@@ -1,23 +1,27 @@
 """Point-tracking benchmark (thesis fig. 3.3): C-COT (with memory and retrained every frame), MOSSE and
 OpenCV's pyramidal Lucas-Kanade (KLT) from the same good-features-to-track start points.
 
-Datasets: Sintel folders laid out like ``../shared/data/sintel/alley_1/clean`` (frames plus ``gt/``; from the
-first ground-truth flow on, chained over consecutive flows, ground truth by the thesis protocol) and a seeded
-synthetic sequence with chained ground truth. Metrics at the last frame, per method: ``epe_median``,
-``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at`` (fraction not
-lost with EPE below 1, 2, 3 px), ``point_frames_per_s`` and, with KLT in the run, ``speed_vs_klt`` (the ratio of
-point-frames per second). Lost points keep their last position for the EPE
-statistics and never count as inliers.
+Datasets: folders laid out like ``../shared/data/sintel/alley_1/clean`` (frames plus ``gt/``: Sintel, and the
+Middlebury pairs in ``../shared/data/middlebury/<Seq>``; from the first ground-truth flow on, chained over
+consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder>``), a seeded synthetic
+sequence with chained ground truth (``--synthetic``) and the synthetic stress conditions of
+:mod:`data.flow.stress` (``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion
+blur, fast motion, illumination change, JPEG, a long run). Metrics at the last frame, per method and dataset:
+``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at``
+(fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_s`` and, with
+KLT in the run, ``speed_vs_klt`` (the ratio of point-frames per second). Lost points keep their last position for
+the EPE statistics and never count as inliers.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
 device by the wall clock after synchronisation. The JSON names the clock. Every method first runs once on the
-first two frames, untimed (warm-up), then ``--repeats`` times (default 3) with the methods taking turns; the
-best time counts. ``--compile`` adds ``ccot_compiled``: ``ccot`` with its per-frame step
-through ``torch.compile`` (compiled during the warm-up).
+first two frames (warm-up; its wall time from a cold start, tracker construction included, is ``first_call_s``),
+then ``--repeats`` times (default 3) with the methods taking turns; the best time counts. ``--compile`` adds
+``ccot_compiled``: ``ccot`` with its per-frame step through ``torch.compile`` (compiled during the warm-up).
 
     python -m bench.point_tracking --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
         --plot docs/figures/point_tracking.png
+    python -m bench.point_tracking --stress --methods ccot klt --plot stress.png   # also stress_conditions.png
 """
 
 from __future__ import annotations
@@ -157,13 +161,17 @@ def run_method(method: str, frames: np.ndarray, points: np.ndarray, device: str 
 def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu", repeats: int = 3) -> dict:
     """Run every method on every dataset; one result dict per method (with per-point EPEs under ``epe``).
 
-    Each method first runs once on the first two frames (untimed warm-up: one-time start-up costs), then
+    Each method first runs once on the first two frames (warm-up: one-time start-up costs; its wall time,
+    tracker construction and any compilation included, is ``first_call_s``, meaningful for the first dataset), then
     ``repeats`` times on the whole sequence, the methods taking turns; the time is the best of the repeats (the
     least disturbed by other jobs), the accuracy that of the last run (the trackers are deterministic)."""
     out = {}
     for name, data in datasets.items():
+        first_call = {}
         for method in methods:
+            start = time.perf_counter()
             run_method(method, data.frames[:2], data.points, device)
+            first_call[method] = time.perf_counter() - start
         seconds = {method: [] for method in methods}
         last = {}
         for _ in range(repeats):
@@ -171,6 +179,8 @@ def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu",
                 *last[method], elapsed = run_method(method, data.frames, data.points, device)
                 seconds[method].append(elapsed)
         results = {method: metrics(*last[method], data, min(seconds[method])) for method in methods}
+        for method, m in results.items():
+            m["first_call_s"] = first_call[method]
         if "klt" in results:
             for m in results.values():
                 m["speed_vs_klt"] = m["point_frames_per_s"] / results["klt"]["point_frames_per_s"]
@@ -192,26 +202,56 @@ def table(result: dict) -> str:
         )
         lines.append(
             f"  {'method':13s} {'inliers':>8s} {'inl.EPE':>8s} {'EPE med':>8s} {'EPE mean':>9s} "
-            f"{'P@1':>6s} {'P@2':>6s} {'lost':>6s} {'pt-fr/s':>9s} {'vs klt':>7s}"
+            f"{'P@1':>6s} {'P@2':>6s} {'lost':>6s} {'pt-fr/s':>9s} {'vs klt':>7s} {'1st call':>8s}"
         )
         for method, m in ds["methods"].items():
             lines.append(
                 f"  {method:13s} {m['inlier_frac']:8.3f} {m['inlier_epe_mean']:8.3f} {m['epe_median']:8.3f} "
                 f"{m['epe_mean']:9.2f} {m['precision_at']['1']:6.3f} {m['precision_at']['2']:6.3f} "
                 f"{m['lost_frac']:6.3f} {m['point_frames_per_s']:9.0f} {m.get('speed_vs_klt', float('nan')):7.3f}"
+                f" {m['first_call_s']:7.2f}s"
             )
     return "\n".join(lines)
 
 
-def plot(result: dict, path: str | Path) -> None:
-    """EPE distributions (log-spaced histogram, mean inlier EPE in the legend) and precision curves
-    (value at 3 px
-    in the legend) per dataset, like thesis figure 3.3."""
+def plot_conditions(result: dict, path: str | Path) -> None:
+    """Inlier fraction and mean inlier EPE of every method per dataset (condition), as grouped bars."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    names = list(result)
+    methods = list(next(iter(result.values()))["methods"])
+    fig, axes = plt.subplots(2, 1, figsize=(max(7.0, 0.9 * len(names) + 2), 6.5), sharex=True)
+    width = 0.8 / len(methods)
+    x = np.arange(len(names))
+    for i, method in enumerate(methods):
+        for ax, key in zip(axes, ("inlier_frac", "inlier_epe_mean"), strict=True):
+            values = [result[n]["methods"][method][key] for n in names]
+            ax.bar(x + (i - (len(methods) - 1) / 2) * width, values, width, label=method)
+    axes[0].set(ylabel="inliers (not lost, EPE < 3 px)", ylim=(0, 1), title="per dataset and condition")
+    axes[1].set(ylabel="mean inlier EPE (px)")
+    axes[1].set_xticks(x, [n.replace("stress_", "") for n in names], rotation=30, ha="right")
+    axes[0].legend(fontsize=8, ncol=len(methods))
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot(result: dict, path: str | Path) -> None:
+    """EPE distributions (log-spaced histogram, mean inlier EPE in the legend) and precision curves (value at 3 px
+    in the legend) per dataset, like thesis figure 3.3; with several datasets also the per-condition bars
+    (:func:`plot_conditions`) beside it, as ``<path stem>_conditions.png``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if len(result) > 1:
+        path = Path(path)
+        plot_conditions(result, path.with_name(f"{path.stem}_conditions{path.suffix}"))
     fig, axes = plt.subplots(len(result), 2, figsize=(11, 3.6 * len(result)), squeeze=False)
     bins = np.logspace(-3, 2, 51)
     taus = np.linspace(0, 5, 101)
