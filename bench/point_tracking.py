@@ -8,9 +8,10 @@ sequence with chained ground truth (``--synthetic``) and the synthetic stress co
 :mod:`data.flow.stress` (``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion
 blur, fast motion, illumination change, JPEG, a long run). Metrics at the last frame, per method and dataset:
 ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at``
-(fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_s`` and, with
-KLT in the run, ``speed_vs_klt`` (the ratio of point-frames per second). Lost points keep their last position for
-the EPE statistics and never count as inliers.
+(fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_s``, with
+KLT in the run ``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder hid some points
+(``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep their last
+position for the EPE statistics and never count as inliers.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
@@ -50,12 +51,13 @@ THRESHOLDS = (1, 2, 3)
 @dataclass
 class Dataset:
     """Frames ``(T, H, W)`` uint8, start points ``(P, 2)``, ground truth at the last frame ``(P, 2)``, valid
-    ``(P,)``."""
+    ``(P,)`` and, where known, ``occluded`` ``(P,)``: hidden by an occluder in some frame (they should be lost)."""
 
     frames: np.ndarray
     points: np.ndarray
     truth: np.ndarray
     valid: np.ndarray
+    occluded: np.ndarray | None = None
 
 
 def detect(frame: np.ndarray, n: int) -> np.ndarray:
@@ -94,7 +96,8 @@ def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0) 
     frames = seq.frames.round().clip(0, 255).astype(np.uint8)
     points = detect(frames[0], n_points)
     tracks, valid = seq.track(points)
-    return Dataset(frames, points, tracks[-1], valid[-1])
+    occluded = seq.hidden(tracks).any(0) if seq.occluder is not None else None
+    return Dataset(frames, points, tracks[-1], valid[-1], occluded)
 
 
 def clock(device: str):
@@ -145,6 +148,7 @@ def metrics(pred: np.ndarray, lost: np.ndarray, data: Dataset, seconds: float) -
         "precision_at": {str(t): float((tracked & (epe < t)).mean()) for t in THRESHOLDS},
         "lost_frac": float((~tracked).mean()),
         "point_frames_per_s": n_tracked / seconds,
+        **({"occluded_lost_frac": float(lost[data.occluded].mean())} if data.occluded is not None else {}),
         "epe": epe.tolist(),
         "tracked": tracked.tolist(),
     }

@@ -2,7 +2,8 @@
 
     python -m export.tracking_onnx --out track_step.onnx [--method ccot] [--height 240 --width 320]
 
-Inputs: ``frame`` (1, 1, H, W) gray float32 (H, W dynamic), ``positions`` (P, 2), ``lost`` (P,) bool and the
+Inputs: ``frame`` (1, 1, H, W) gray float32 (H, W dynamic), ``previous`` (the frame before it, for the
+forward-backward test), ``positions`` (P, 2), ``lost`` (P,) bool and the
 filter state of every pyramid level, ``filters_0`` .. ``filters_{L-1}`` (3, N_l, P, K_l) (real and imaginary
 parts of the numerators and the denominators, finest level first, point-interleaved), with a dynamic number of
 points P. Outputs: ``positions_out``, ``lost_out``, ``psr`` (P,) and the updated ``filters_l_out``. The graph
@@ -25,7 +26,7 @@ from models.tracking import PointTracker
 def io_names(levels: int) -> tuple[list[str], list[str]]:
     """Input and output names of the exported step for a ``levels``-level tracker."""
     filters = [f"filters_{level}" for level in range(levels)]
-    inputs = ["frame", "positions", "lost", *filters]
+    inputs = ["frame", "previous", "positions", "lost", *filters]
     return inputs, ["positions_out", "lost_out", "psr", *[f"{name}_out" for name in filters]]
 
 
@@ -38,7 +39,7 @@ def example_inputs(tracker: PointTracker, height: int, width: int, points: int, 
     pts = torch.rand(points, 2, generator=gen) * torch.tensor([width - 1.0, height - 1.0])
     state = tracker.init(frame[0, 0], pts)
     nxt = torch.roll(frame, (2, -3), (2, 3))
-    return nxt, state.positions, state.lost, *state.filters
+    return nxt, frame, state.positions, state.lost, *state.filters
 
 
 def export_tracking_step(
@@ -51,7 +52,7 @@ def export_tracking_step(
     h = torch.export.Dim("height", min=64, max=4096)
     w = torch.export.Dim("width", min=64, max=4096)
     inputs, outputs = io_names(tracker.levels)
-    dynamic = {"frame": {2: h, 3: w}, "positions": {0: p}, "lost": {0: p}}
+    dynamic = {"frame": {2: h, 3: w}, "previous": {2: h, 3: w}, "positions": {0: p}, "lost": {0: p}}
     dynamic["filters"] = tuple({2: p} for _ in range(tracker.levels))  # forward's *filters
     with torch.no_grad():
         return export_onnx(tracker, args, path, inputs, outputs, dynamic_shapes=dynamic)

@@ -11,7 +11,10 @@ to about 8 px per frame) and changes one thing:
 - ``illumination``: a global gain ramp from 1.0 down to 0.4 with a moving spatial light gradient (a linear
   shading of +-35 % that rotates over the sequence);
 - ``jpeg``: every frame JPEG-compressed at quality 15 (blocking and ringing);
-- ``long``: 60 frames, for drift and sample-memory effects over a long run.
+- ``long``: 60 frames, for drift and sample-memory effects over a long run;
+- ``occlusion``: six opaque textured discs (radius 20-45 px) that cross the scene on straight paths at 4-12 px
+  per frame; the points they cover lose their ground truth (:attr:`SyntheticSequence.occluder`), so this is
+  where a tracker should flag points lost.
 
 Every condition is seeded: the same (condition, seed, size) gives the same frames.
 """
@@ -24,7 +27,9 @@ import numpy as np
 from core.errors import InputError
 from data.flow.synthetic import SyntheticSequence, synthetic_sequence
 
-STRESS_CONDITIONS = ("dark", "low_contrast", "motion_blur", "fast_motion", "illumination", "jpeg", "long")
+STRESS_CONDITIONS = (
+    "dark", "low_contrast", "motion_blur", "fast_motion", "illumination", "jpeg", "long", "occlusion"
+)
 
 # synthetic_sequence arguments per condition, on top of a moderate base motion (8 px per frame), so that each
 # condition isolates one difficulty
@@ -37,6 +42,7 @@ _RENDER = {
     "illumination": {"brightness": 0.0},
     "jpeg": {},
     "long": {"frames": 60},
+    "occlusion": {},
 }
 
 
@@ -67,6 +73,27 @@ def _jpeg(frames: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return out
 
 
+def _occluders(seq: SyntheticSequence, rng: np.random.Generator, count: int = 6) -> None:
+    """Paste ``count`` moving textured discs over the frames of ``seq`` and record where they are."""
+    t, h, w = seq.frames.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    covered = np.zeros((t, h, w), dtype=bool)
+    for _ in range(count):
+        radius = rng.uniform(20, 45)
+        start = rng.uniform([0, 0], [w, h])
+        speed, angle = rng.uniform(4, 12), rng.uniform(0, 2 * np.pi)
+        velocity = speed * np.array([np.cos(angle), np.sin(angle)])
+        texture = cv2.GaussianBlur(rng.uniform(0, 255, (h, w)).astype(np.float32), (0, 0), 2.0)
+        texture = rng.uniform(60, 200) + (texture - texture.mean()) * (40 / (texture.std() + 1e-6))
+        for i in range(t):
+            cx, cy = start + i * velocity
+            disc = (xs - cx) ** 2 + (ys - cy) ** 2 <= radius**2
+            shifted = np.roll(texture, (int(round(i * velocity[1])), int(round(i * velocity[0]))), (0, 1))
+            seq.frames[i][disc] = shifted[disc]  # the disc's texture moves with it
+            covered[i] |= disc
+    seq.occluder = covered
+
+
 _POST = {"dark": _dark, "low_contrast": _low_contrast, "illumination": _illumination, "jpeg": _jpeg}
 
 
@@ -74,12 +101,15 @@ def stress_sequence(
     condition: str, frames: int = 24, size: tuple[int, int] = (384, 512), seed: int = 0
 ) -> SyntheticSequence:
     """The synthetic sequence under ``condition`` (one of :data:`STRESS_CONDITIONS`); ``frames`` is ignored by
-    ``long`` (60 frames). Frames ``(T, H, W)`` float32 in [0, 255], ground truth as the plain sequence's."""
+    ``long`` (60 frames). Frames ``(T, H, W)`` float32 in [0, 255], ground truth as the plain sequence's (minus the
+    hidden points under ``occlusion``)."""
     if condition not in STRESS_CONDITIONS:
         raise InputError(f"unknown stress condition {condition!r}; choose one of {', '.join(STRESS_CONDITIONS)}")
     render = {"frames": frames, "size": size, "seed": seed, **_BASE, **_RENDER[condition]}
     seq = synthetic_sequence(**render)
+    rng = np.random.default_rng([seed, STRESS_CONDITIONS.index(condition)])
     if condition in _POST:
-        rng = np.random.default_rng([seed, STRESS_CONDITIONS.index(condition)])
         seq.frames = np.clip(_POST[condition](seq.frames.astype(np.float64), rng), 0, 255).astype(np.float32)
+    if condition == "occlusion":
+        _occluders(seq, rng)
     return seq

@@ -55,14 +55,28 @@ class _Motion:
 @dataclass
 class SyntheticSequence:
     """Frames ``(T, H, W)`` float32 in [0, 255] and the warps that made them; :meth:`track` gives ground
-    truth."""
+    truth. ``occluder`` ``(T, H, W)`` bool, where set, marks the pixels that an occluding object covers in each
+    frame (the scene's points there are hidden)."""
 
     frames: np.ndarray
     motion: _Motion
+    occluder: np.ndarray | None = None
+
+    def hidden(self, tracks: np.ndarray) -> np.ndarray:
+        """``(T, P)`` bool: the ground-truth positions ``(T, P, 2)`` that lie under an occluder in their frame
+        (nearest pixel; positions outside the image are not hidden)."""
+        t, p = tracks.shape[:2]
+        if self.occluder is None:
+            return np.zeros((t, p), dtype=bool)
+        h, w = self.occluder.shape[1:]
+        x, y = np.rint(tracks[..., 0]).astype(np.int64), np.rint(tracks[..., 1]).astype(np.int64)
+        inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+        frame = np.broadcast_to(np.arange(t)[:, None], (t, p))
+        return inside & self.occluder[frame, y.clip(0, h - 1), x.clip(0, w - 1)]
 
     def track(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ground-truth tracks ``(T, P, 2)`` of frame-0 points ``(P, 2)`` (x, y) and validity ``(T, P)``
-        (inside the image in every frame so far, and an exact inverse)."""
+        (inside the image, an exact inverse and not hidden by an occluder, in every frame so far)."""
         points = np.asarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 2:
             raise InputError(f"points must have shape (P, 2), got {points.shape}")
@@ -82,7 +96,9 @@ class SyntheticSequence:
             )
             tracks.append(x)
             valid.append(ok)
-        return np.stack(tracks), np.stack(valid)
+        tracks = np.stack(tracks)
+        visible = np.logical_and.accumulate(~self.hidden(tracks), axis=0)
+        return tracks, np.stack(valid) & visible
 
 
 def _texture(rng: np.random.Generator, height: int, width: int) -> np.ndarray:

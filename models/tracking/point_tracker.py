@@ -3,10 +3,11 @@ pyramid level, searched coarse to fine.
 
 Per frame: build a 3-level pyramid; from the coarsest level down, extract every point's patch at its current
 estimate (one gather for all points), correlate with that level's filter, find the peak and add the scaled
-shift. Points whose level-0 PSR falls below a threshold or that leave the image are flagged lost and
-frozen at their last position; the PSR threshold is relative to the frame's other points, so a frame that is
-dark, blurred or compressed throughout does not lose its points, while a point whose peak collapses against the
-rest (occlusion) does. Then the filters of the points still tracked learn, with weight ``eta``, a
+shift. Points that leave the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is
+weak against the frame's other points and that do not track back to where they came from (a forward-backward
+test on level 0) are flagged lost and frozen at their last position. Both cues are needed: each alone fires on
+correct tracks in dark, blurred or compressed frames, and a false alarm is final; together they still catch most
+points that an occluder covers. Then the filters of the points still tracked learn, with weight ``eta``, a
 sample at the new position: the search sample shifted in the Fourier domain.
 
 Cost: the patches are small (default 21, 15 and 25 px from fine to coarse: the finest sets the accuracy, the
@@ -114,10 +115,12 @@ def _per_level(value, levels: int, name: str, kind: type = int) -> tuple:
 
 @dataclass
 class TrackerState:
-    """Tracker state: positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)`` and per pyramid level (finest
-    first) the filters ``(3, 2M + 1, P, M + 1)``: real and imaginary parts of the numerators ``A`` and the
-    denominators ``B`` of the level's band-limited half spectra (``M`` = the level's band), point-interleaved."""
+    """Tracker state: the last frame ``(1, 1, H, W)``, positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)``
+    and per pyramid level (finest first) the filters ``(3, 2M + 1, P, M + 1)``: real and imaginary parts of the
+    numerators ``A`` and the denominators ``B`` of the level's band-limited half spectra (``M`` = the level's
+    band), point-interleaved."""
 
+    frame: Tensor
     positions: Tensor
     lost: Tensor
     psr: Tensor
@@ -136,9 +139,11 @@ class PointTracker(nn.Module):
         reg_rel: regulariser relative to the mean sample energy (``beta^2`` / ``eps``).
         newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
         level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
-        psr_relative, psr_threshold: a point is lost when its level-0 PSR falls below ``psr_relative`` times the
-        geometric mean PSR of the frame's tracked points, or below ``psr_threshold`` (see
-        :meth:`_lost_threshold`). psr_exclude: PSR exclusion window.
+        psr_relative, fb_threshold, psr_threshold: a point is lost when its level-0 PSR falls below
+        ``psr_relative`` times the geometric mean PSR of the frame's tracked points (:meth:`_lost_threshold`)
+        and tracking it back to the previous frame misses by more than ``fb_threshold`` px
+        (:meth:`_backward_error`; None: the PSR test alone), or when its PSR is below ``psr_threshold``
+        (no peak at all). psr_exclude: PSR exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
         the sample spectra and the transforms shrink with it.
@@ -154,7 +159,8 @@ class PointTracker(nn.Module):
         reg_rel: float = 1e-2,
         newton_iterations: int | tuple[int, ...] = (2, 0, 0),
         psr_threshold: float = 2.5,
-        psr_relative: float = 0.2,
+        psr_relative: float = 0.3,
+        fb_threshold: float | None = 1.0,
         psr_exclude: int = 7,
         band: float | tuple[float, ...] = 0.7,
     ) -> None:
@@ -168,7 +174,7 @@ class PointTracker(nn.Module):
         self.method, self.levels = method, levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
-        self.psr_relative = psr_relative
+        self.psr_relative, self.fb_threshold = psr_relative, fb_threshold
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
@@ -250,7 +256,7 @@ class PointTracker(nn.Module):
             for lv in range(self.levels)
         )
         psr = torch.full_like(points[:, 0], float("inf"))
-        return TrackerState(torch.where(lost.unsqueeze(-1), points, positions), lost, psr, filters)
+        return TrackerState(frame, torch.where(lost.unsqueeze(-1), points, positions), lost, psr, filters)
 
     def _peak(self, spectrum: Tensor, score: Tensor, argmax: tuple[Tensor, Tensor, Tensor], level: int) -> Tensor:
         """Sub-pixel shift ``(P, 2)`` (x, y) of the score maximum at ``level`` (``spectrum``: ``[re | im]``
@@ -272,11 +278,14 @@ class PointTracker(nn.Module):
         pr, pi = cy * cx - sy * sx, sy * cx + cy * sx
         return zr * pr - zi * pi, zr * pi + zi * pr
 
-    def forward(self, frame: Tensor, positions: Tensor, lost: Tensor, *filters: Tensor) -> tuple[Tensor, ...]:
+    def forward(
+        self, frame: Tensor, previous: Tensor, positions: Tensor, lost: Tensor, *filters: Tensor
+    ) -> tuple[Tensor, ...]:
         """One tracking step (exportable: real tensors in and out).
 
         Args:
-            frame: ``(1, 1, H, W)`` gray frame. positions: ``(P, 2)``. lost: ``(P,)`` bool.
+            frame: ``(1, 1, H, W)`` gray frame; previous: the frame before it (same size, for the
+            forward-backward test). positions: ``(P, 2)``. lost: ``(P,)`` bool.
             filters: per level, finest first, ``(3, 2M + 1, P, M + 1)`` (see :class:`TrackerState`).
         Returns:
             positions, lost, psr ``(P,)`` and the filters after this frame.
@@ -299,35 +308,56 @@ class PointTracker(nn.Module):
             centres.insert(0, centre)
         psr = interleaved_psr(score, self.psr_exclude, argmax)
         moved = start + d
-        lost = lost | ~self._inside(moved, frame)
-        lost = lost | ~(psr >= self._lost_threshold(psr, lost))
-        positions = torch.where(lost.unsqueeze(-1), positions, moved)
         # Training samples at the new positions: the search samples shifted in the Fourier domain (as C-COT
-        # centres its samples on the target), cheaper than extracting again and at least as accurate.
+        # centres its samples on the target), cheaper than extracting again and at least as accurate. Level 0's
+        # also serves the forward-backward test; lost points learn nothing (eta 0), whatever their sample.
+        sample = self._shift(*spectra[0], moved - centres[0], 0)
+        lost = lost | ~self._inside(moved, frame)
+        weak = ~(psr >= self._lost_threshold(psr, lost))
+        if self.fb_threshold is not None:
+            weak = weak & ~(self._backward_error(previous, start, *sample) <= self.fb_threshold)
+        lost = lost | weak | ~(psr >= self.psr_threshold)
+        positions = torch.where(lost.unsqueeze(-1), positions, moved)
         target = torch.where(lost.unsqueeze(-1), start, moved)
         eta = torch.where(lost, torch.zeros_like(psr), torch.full_like(psr, self.eta))
-        updated = []
-        for level in range(self.levels):
+        updated = [self._learn(filters[0], *sample, eta, 0)]
+        for level in range(1, self.levels):
             shift = (target + 0.5) / 2**level - 0.5 - centres[level]
             updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
         return positions, lost, psr, *updated
 
+    def _backward_error(self, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor) -> Tensor:
+        """Forward-backward error ``(P,)`` in px (Kalal et al. 2010, on level 0): a filter trained on the new
+        sample alone (band-limited spectrum ``(2M + 1, P, M + 1)`` centred on the new position) searches the
+        previous frame around the start positions ``(P, 2)``; the distance of its peak from the start is how far
+        tracking back would miss. A point that an occluder covered or that locked onto another structure comes
+        back elsewhere; one tracked correctly through blur, noise or a brightness change comes back home."""
+        y = self.label_0
+        energy = zr.square() + zi.square()
+        mean_energy = energy.sum(0).sum(1, keepdim=True) / (energy.shape[0] * energy.shape[2])
+        weight = y / (energy + self.reg_rel * mean_energy)
+        ar, ai = zr * weight, -zi * weight  # conj(z) y / (|z|^2 + reg)
+        pr, pi = self._sample(previous, start, 0)
+        score = self.dfts[0].inverse(torch.cat([ar * pr - ai * pi, ar * pi + ai * pr], -1))
+        return interleaved_peak(score)[0].norm(dim=-1)
+
     def _lost_threshold(self, psr: Tensor, lost: Tensor) -> Tensor:
-        """The PSR below which a point is lost in this frame: ``psr_relative`` times the geometric mean PSR of the
-        points still tracked, at least ``psr_threshold``. Relative to the frame, the decision follows what
-        lowers every point's PSR alike (darkness, blur, compression) and flags the points whose peak collapses
-        against the rest (occlusion, a wrong match)."""
+        """The PSR below which a point's peak is weak in this frame: ``psr_relative`` times the geometric mean PSR
+        of the points still tracked. Relative to the frame, the test follows what lowers every point's PSR
+        alike (darkness, blur, compression) and singles out the points whose peak collapses against the rest
+        (occlusion, a wrong match)."""
         tracked = (~lost & torch.isfinite(psr)).to(psr.dtype)
         log_psr = torch.log(torch.where(tracked > 0, psr, torch.ones_like(psr)).clamp_min(1e-3)) * tracked
         mean = torch.exp(log_psr.sum() / tracked.sum().clamp_min(1))
-        return torch.clamp_min(self.psr_relative * mean, self.psr_threshold)
+        return self.psr_relative * mean
 
     def step(self, frame: Tensor, state: TrackerState, compile: bool = False) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``; ``compile``: run :meth:`forward` through
         ``torch.compile`` (see :meth:`track`)."""
         forward = self._compiled() if compile else self
-        positions, lost, psr, *filters = forward(self._frame(frame), state.positions, state.lost, *state.filters)
-        return TrackerState(positions, lost, psr, tuple(filters))
+        frame = self._frame(frame)
+        positions, lost, psr, *filters = forward(frame, state.frame, state.positions, state.lost, *state.filters)
+        return TrackerState(frame, positions, lost, psr, tuple(filters))
 
     def _compiled(self):
         """:meth:`forward` compiled by ``torch.compile`` for fixed shapes (made once per tracker)."""
