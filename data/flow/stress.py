@@ -85,6 +85,7 @@ def _occluders(seq: SyntheticSequence, rng: np.random.Generator, count: int = 6)
         velocity = speed * np.array([np.cos(angle), np.sin(angle)])
         texture = cv2.GaussianBlur(rng.uniform(0, 255, (h, w)).astype(np.float32), (0, 0), 2.0)
         texture = rng.uniform(60, 200) + (texture - texture.mean()) * (40 / (texture.std() + 1e-6))
+        texture = texture.clip(0, 255)
         for i in range(t):
             cx, cy = start + i * velocity
             disc = (xs - cx) ** 2 + (ys - cy) ** 2 <= radius**2

@@ -330,8 +330,10 @@ class PointTracker(nn.Module):
         """Forward-backward error ``(P,)`` in px (Kalal et al. 2010, on level 0): a filter trained on the new
         sample alone (band-limited spectrum ``(2M + 1, P, M + 1)`` centred on the new position) searches the
         previous frame around the start positions ``(P, 2)``; the distance of its peak from the start is how far
-        tracking back would miss. A point that an occluder covered or that locked onto another structure comes
-        back elsewhere; one tracked correctly through blur, noise or a brightness change comes back home."""
+        tracking back would miss (one search: the sample window pulls the peak towards the centre, so misses of a
+        few px read up to about 20 % short). A point that an occluder covered or that locked onto another
+        structure comes back elsewhere; one tracked correctly through blur, noise or a brightness change comes
+        back home."""
         y = self.label_0
         energy = zr.square() + zi.square()
         mean_energy = energy.sum(0).sum(1, keepdim=True) / (energy.shape[0] * energy.shape[2])

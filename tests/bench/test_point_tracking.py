@@ -52,3 +52,16 @@ def test_every_sintel_folder_counts():
     args = point_tracking.build_parser().parse_args(["--sintel", "A", "--sintel", "B", "C"])
     assert args.sintel == ["A", "B", "C"]
     assert point_tracking.build_parser().parse_args([]).sintel == []
+
+
+def test_stress_conditions_are_rows_with_occlusion_recall(capsys):
+    argv = ["--stress", "occlusion", "jpeg", "--frames", "4", "--points", "150", "--methods", "ccot", "klt",
+            "--repeats", "1", "--json"]
+    assert point_tracking.main(argv) == 0
+    result = json.loads(capsys.readouterr().out)["datasets"]
+    assert set(result) == {"stress_occlusion", "stress_jpeg"}
+    occlusion = result["stress_occlusion"]["methods"]
+    assert 0 <= occlusion["ccot"]["occluded_lost_frac"] <= 1 and "occluded_lost_frac" in occlusion["klt"]
+    assert "occluded_lost_frac" not in result["stress_jpeg"]["methods"]["ccot"]
+    for m in (*occlusion.values(), *result["stress_jpeg"]["methods"].values()):
+        assert m["first_call_s"] > 0

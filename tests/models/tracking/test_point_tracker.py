@@ -107,6 +107,49 @@ def test_lost_flags_for_flat_regions_and_leaving_points():
     assert l2[1].item()  # moved past the right border
 
 
+@pytest.mark.parametrize("miss", [(0.0, 0.0), (2.0, 0.0), (-1.5, 2.5), (3.0, -3.0)])
+def test_backward_error_is_the_distance_of_a_wrong_match(miss):
+    """A sample taken at a wrong position ``true + miss`` in the new frame tracks back to ``start + miss`` in the
+    previous frame (pure translation): the forward-backward error is ``|miss|``, measured by one search whose
+    cosine window pulls the peak towards the patch centre (at most about 20 % short)."""
+    img = _smooth_image(128, 128, 7)
+    d = torch.tensor([5.3, -2.4], dtype=torch.float64)
+    moved = _translate(img, *d.tolist())
+    tracker = PointTracker("ccot").double()
+    start = torch.tensor([[50.0, 60.0], [70.0, 64.0], [64.0, 80.0]], dtype=torch.float64)
+    wrong = start + d + torch.tensor(miss, dtype=torch.float64)
+    sample = tracker._sample(moved[None, None], wrong, 0)
+    error = tracker._backward_error(img[None, None], start, *sample)
+    expected = math.hypot(*miss)
+    assert (error >= 0.75 * expected - 0.02).all() and (error <= 1.02 * expected + 0.02).all(), (error, expected)
+
+
+def test_weak_peak_threshold_is_relative_to_the_geometric_mean_psr():
+    tracker = PointTracker("ccot", psr_relative=0.3)
+    psr = torch.tensor([4.0, 16.0, 9.0, 1.0, float("nan"), 100.0])
+    lost = torch.tensor([False, False, False, False, False, True])
+    tracked = [4.0, 16.0, 9.0, 1.0]  # the lost point and the non-finite PSR do not count
+    expected = 0.3 * math.exp(sum(math.log(v) for v in tracked) / len(tracked))
+    assert tracker._lost_threshold(psr, lost).item() == pytest.approx(expected, rel=1e-6)
+
+
+def test_occluded_point_is_lost_while_the_others_are_kept():
+    """An opaque patch of other texture slides over one point between two frames: its peak collapses and it does
+    not track back home, so it is flagged lost; the visible points, some in a darker and blurred copy of the
+    frame, are kept."""
+    img = _smooth_image(160, 160, 8)
+    d = (3.0, 2.0)
+    moved = _translate(img, *d)
+    ys, xs = torch.meshgrid(torch.arange(160.0), torch.arange(160.0), indexing="ij")
+    disc = (xs - 43.0) ** 2 + (ys - 42.0) ** 2 <= 22.0**2
+    moved = torch.where(disc, _smooth_image(160, 160, 9), moved)
+    points = torch.tensor([[40.0, 40.0], [100.0, 60.0], [120.0, 120.0], [60.0, 110.0], [110.0, 30.0]])
+    for frames in ([img, moved], [0.3 * img, 0.3 * moved]):  # a darker copy keeps the decision
+        tracks, lost, _ = PointTracker("ccot").double().track([f.double() for f in frames], points.double())
+        assert lost[1].tolist() == [True, False, False, False, False]
+        np.testing.assert_allclose(tracks[1, 1:] - points[1:].double(), np.tile(d, (4, 1)), atol=0.05)
+
+
 def test_bad_input():
     img = torch.rand(64, 64) * 255
     with pytest.raises(InputError, match="size"):

@@ -1,0 +1,72 @@
+"""Stress conditions for point tracking: seeded, each one a real change of the plain sequence, ground truth that
+holds (blur centred on it, hidden points removed), bad names refused."""
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from data.flow import STRESS_CONDITIONS, sample_bilinear, stress_sequence, synthetic_sequence
+
+SIZE = (96, 128)
+
+
+@pytest.mark.parametrize("condition", STRESS_CONDITIONS)
+def test_seeded_and_different_from_the_moderate_base(condition):
+    a = stress_sequence(condition, frames=4, size=SIZE, seed=2)
+    b = stress_sequence(condition, frames=4, size=SIZE, seed=2)
+    np.testing.assert_array_equal(a.frames, b.frames)
+    assert a.frames.dtype == np.float32 and a.frames.min() >= 0 and a.frames.max() <= 255
+    base = synthetic_sequence(frames=len(a.frames), size=SIZE, seed=2, max_motion=8.0)
+    if condition != "long":  # long is the base itself, only longer
+        assert not np.array_equal(a.frames, base.frames)
+    assert len(a.frames) == (60 if condition == "long" else 4)
+
+
+def test_dark_and_low_contrast_reduce_the_contrast():
+    base = synthetic_sequence(frames=3, size=SIZE, seed=1, max_motion=8.0).frames
+    dark = stress_sequence("dark", frames=3, size=SIZE, seed=1).frames
+    low = stress_sequence("low_contrast", frames=3, size=SIZE, seed=1).frames
+    assert dark.mean() < 0.3 * base.mean() and dark.std() < 0.3 * base.std()
+    assert abs(low.mean() - base.mean()) < 0.3 * base.std() and low.std() < 0.3 * base.std()
+
+
+def test_motion_blur_is_centred_on_the_ground_truth():
+    """Exposure blurs along the motion but keeps every point's intensity where the ground truth says it is,
+    better than one pixel off (noise, defocus and gain off)."""
+    seq = synthetic_sequence(frames=5, size=(128, 160), max_motion=12.0, blur=0, noise=0, brightness=0, seed=5,
+                             exposure=0.6)
+    sharp = synthetic_sequence(frames=5, size=(128, 160), max_motion=12.0, blur=0, noise=0, brightness=0, seed=5)
+    def gradient(frames):
+        return np.abs(np.diff(frames, axis=1)).mean() + np.abs(np.diff(frames, axis=2)).mean()
+
+    assert gradient(seq.frames[1:-1]) < 0.85 * gradient(sharp.frames[1:-1])
+    points = np.random.default_rng(1).uniform(30, 100, (2000, 2))
+    tracks, valid = seq.track(points)
+    blurred_start = sample_bilinear(seq.frames[0], points)
+    for t in range(1, 5):
+        v = valid[t]
+        err = np.abs(sample_bilinear(seq.frames[t], tracks[t]) - blurred_start)[v].mean()
+        off = np.abs(sample_bilinear(seq.frames[t], tracks[t] + [1.0, 1.0]) - blurred_start)[v].mean()
+        assert err < off, (t, err, off)
+
+
+def test_occluded_points_lose_their_ground_truth():
+    seq = stress_sequence("occlusion", frames=6, size=(128, 160), seed=3)
+    assert seq.occluder.shape == seq.frames.shape and seq.occluder.any()
+    points = np.random.default_rng(0).uniform(0, 127, (3000, 2))
+    tracks, valid = seq.track(points)
+    hidden = seq.hidden(tracks)
+    for t in range(6):  # brute force: a point is hidden where the occluder covers its nearest pixel
+        for p in range(0, 3000, 37):
+            x, y = np.rint(tracks[t, p]).astype(int)
+            inside = 0 <= x < 160 and 0 <= y < 128
+            assert hidden[t, p] == (inside and seq.occluder[t, y, x])
+    assert not (valid & np.logical_or.accumulate(hidden, axis=0)).any()  # once hidden, never valid again
+    assert hidden.any(0).sum() > 30  # the discs really cover points
+
+
+def test_unknown_condition_and_bad_exposure():
+    with pytest.raises(InputError, match="unknown stress condition"):
+        stress_sequence("fog")
+    with pytest.raises(InputError, match="exposure"):
+        synthetic_sequence(frames=2, exposure=1.5)
