@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 import torch
@@ -28,8 +29,9 @@ def track_points(
     (``compile``: the DCF trackers' step through ``torch.compile``, see :meth:`PointTracker.track`).
 
     Returns:
-        ``tracks`` ``(T, P, 2)``, ``lost`` ``(T, P)``, ``psr`` ``(T, P)`` (NaN for KLT) and the start
-        ``points``.
+        ``tracks`` ``(T, P, 2)``, ``lost`` ``(T, P)``, ``psr`` ``(T, P)`` (NaN for KLT), the start ``points`` and
+        ``frame_seconds`` ``(T,)``: wall seconds from the tracker's construction until each frame was tracked
+        (frame 0: the filters trained; so ``frame_seconds[1]`` is the first-call latency; NaN for KLT).
     """
     if method not in ALL_METHODS:
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(ALL_METHODS)}")
@@ -52,15 +54,25 @@ def track_points(
     if method == "klt":
         gray = [np.clip(np.asarray(f), 0, 255).round().astype(np.uint8) for f in frames]
         tracks, lost = klt_track(gray, points)
-        return {"tracks": tracks, "lost": lost, "psr": np.full(lost.shape, np.nan), "points": points}
+        nan = np.full(lost.shape, np.nan)
+        return {"tracks": tracks, "lost": lost, "psr": nan, "points": points, "frame_seconds": nan[:, 0]}
+    start = time.perf_counter()
     tracker = PointTracker(method).to(device)
-    tensors = [torch.as_tensor(np.asarray(f, np.float32), device=device) for f in frames]
+    requested: list[float] = []  # when each frame was asked for, i.e. when the one before it was tracked
+
+    def tensors() -> Iterator[torch.Tensor]:
+        for frame in frames:
+            requested.append(time.perf_counter())
+            yield torch.as_tensor(np.asarray(frame, np.float32), device=device)
+
     tracks, lost, psr = tracker.track(
-        tensors, torch.as_tensor(points, dtype=torch.float32), progress=progress, compile=compile
+        tensors(), torch.as_tensor(points, dtype=torch.float32), progress=progress, compile=compile
     )
+    done = np.array([*requested[1:], time.perf_counter()]) - start
     return {
         "tracks": tracks.double().cpu().numpy(),
         "lost": lost.cpu().numpy(),
         "psr": psr.double().cpu().numpy(),
         "points": points,
+        "frame_seconds": done,
     }

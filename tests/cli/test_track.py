@@ -27,7 +27,10 @@ def test_track_detect_and_points(frame_dir, tmp_path, method, capsys):
         )
         == 0
     )
+    printed = capsys.readouterr().out
+    assert ("first frame pair" in printed) == (method == "ccot")  # first-call latency and steady speed
     data = np.load(out)
+    assert "frame_seconds" not in data  # timings are printed, the tracks file stays deterministic
     assert data["tracks"].shape[:2] == (4, len(data["points"])) and 10 <= len(data["points"]) <= 30
     truth, valid = seq.track(data["points"])
     ok = valid[-1] & ~data["lost"][-1]
