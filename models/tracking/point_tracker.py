@@ -1,7 +1,7 @@
 """Batched DCF point tracker (thesis 3.4, paper B): one small gray-pixel correlation filter per point and
 pyramid level, searched coarse to fine.
 
-Per frame: build a 3-level pyramid; from the coarsest level down, extract every point's patch at its current
+Per frame: build a 4-level pyramid; from the coarsest level down, extract every point's patch at its current
 estimate (one gather for all points), correlate with that level's filter, find the peak and add the scaled
 shift. Points that leave the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is
 weak against the frame's other points and that do not track back to where they came from (a forward-backward
@@ -10,15 +10,15 @@ correct tracks in dark, blurred or compressed frames, and a false alarm is final
 points that an occluder covers. Then the filters of the points still tracked learn, with weight ``eta``, a
 sample at the new position: the search sample shifted in the Fourier domain.
 
-Cost: the patches are small (default 21, 15 and 25 px from fine to coarse: the finest sets the accuracy, the
-coarsest the largest motion), the filters keep only the lower 70 % of the frequencies (band-limited, as in
-C-COT) and their DFTs are real matrix products (:class:`~models.dcf.dft.RealDft2`) with the window and the
-spline interpolation folded in; Newton refinement on the Fourier series runs where it sets
-the output (level 0), the coarser levels take the grid peak refined by a parabola. Patches, spectra, filters
-and responses are stored point-interleaved, ``(rows, P, columns)``, so that each transform is one large matrix
-product per axis; the patch normalisation (zero mean, unit variance) is applied to the spectrum (the mean as a
-multiple of the window's spectrum), so the pixel-sized arrays are only read, by two reductions and the
-transform.
+Cost: the patches are small (default 21 px at level 0, which sets the accuracy, and 15 px on three coarser levels,
+the coarsest of which bounds the largest motion at about 60 px per frame), the filters keep only the lower 70 % of
+the frequencies (band-limited, as in C-COT) and their DFTs are real matrix products
+(:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation folded in; Newton refinement on
+the Fourier series runs where it sets the output (level 0), the coarser levels take the grid peak refined by a
+parabola. Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``, so that
+each transform is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is applied
+to the spectrum (the mean as a multiple of the window's spectrum), so the pixel-sized arrays are only read, by two
+reductions and the transform.
 
 Variants: ``ccot`` (continuous filter, exponentially decaying sample weights = a sample memory), ``ccot_ff``
 (continuous filter retrained from the newest sample only, ``eta = 1``) and ``mosse`` (grid peak plus parabola
@@ -152,12 +152,12 @@ class PointTracker(nn.Module):
     def __init__(
         self,
         method: str = "ccot",
-        levels: int = 3,
-        patch_size: int | tuple[int, ...] = (21, 15, 25),
+        levels: int = 4,
+        patch_size: int | tuple[int, ...] = (21, 15, 15, 15),
         sigma: float = 1.0,
         eta: float | None = None,
         reg_rel: float = 1e-2,
-        newton_iterations: int | tuple[int, ...] = (2, 0, 0),
+        newton_iterations: int | tuple[int, ...] = (2, 0, 0, 0),
         psr_threshold: float = 2.5,
         psr_relative: float = 0.3,
         fb_threshold: float | None = 1.0,
@@ -347,7 +347,8 @@ class PointTracker(nn.Module):
         """The PSR below which a point's peak is weak in this frame: ``psr_relative`` times the geometric mean PSR
         of the points still tracked. Relative to the frame, the test follows what lowers every point's PSR
         alike (darkness, blur, compression) and singles out the points whose peak collapses against the rest
-        (occlusion, a wrong match)."""
+        (occlusion, a wrong match). It needs other points to compare with: a point tracked alone is lost only by
+        the absolute floor ``psr_threshold`` or by leaving the image."""
         tracked = (~lost & torch.isfinite(psr)).to(psr.dtype)
         log_psr = torch.log(torch.where(tracked > 0, psr, torch.ones_like(psr)).clamp_min(1e-3)) * tracked
         mean = torch.exp(log_psr.sum() / tracked.sum().clamp_min(1))
