@@ -315,7 +315,7 @@ class PointTracker(nn.Module):
         lost = lost | ~self._inside(moved, frame)
         weak = ~(psr >= self._lost_threshold(psr, lost))
         if self.fb_threshold is not None:
-            weak = weak & ~(self._backward_error(previous, start, *sample) <= self.fb_threshold)
+            weak = self._fails_backward(weak, previous, start, *sample)
         lost = lost | weak | ~(psr >= self.psr_threshold)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
         target = torch.where(lost.unsqueeze(-1), start, moved)
@@ -325,6 +325,17 @@ class PointTracker(nn.Module):
             shift = (target + 0.5) / 2**level - 0.5 - centres[level]
             updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
         return positions, lost, psr, *updated
+
+    def _fails_backward(self, weak: Tensor, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor) -> Tensor:
+        """``weak`` ``(P,)`` and-ed with a forward-backward miss above ``fb_threshold`` (see
+        :meth:`_backward_error`). Eager runs test only the weak points (a few per cent, so the test costs
+        almost nothing); an exported graph, whose shapes cannot depend on the data, tests all of them. Both
+        give the same flags."""
+        if torch.compiler.is_exporting() or torch.onnx.is_in_onnx_export() or torch.compiler.is_compiling():
+            return weak & ~(self._backward_error(previous, start, zr, zi) <= self.fb_threshold)
+        index = weak.nonzero()[:, 0]
+        miss = self._backward_error(previous, start[index], zr[:, index], zi[:, index])
+        return weak.index_put((index,), ~(miss <= self.fb_threshold))
 
     def _backward_error(self, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor) -> Tensor:
         """Forward-backward error ``(P,)`` in px (Kalal et al. 2010, on level 0): a filter trained on the new

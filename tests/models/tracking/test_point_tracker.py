@@ -122,6 +122,24 @@ def test_backward_error_is_the_distance_of_a_wrong_match(miss):
     assert (error >= 0.75 * expected - 0.02).all() and (error <= 1.02 * expected + 0.02).all(), (error, expected)
 
 
+def test_backward_test_on_the_weak_points_only_equals_the_test_on_all(monkeypatch):
+    """Eager runs search back only for the weak points; the exported graph searches back for every point and
+    and-s: the same flags, also with no weak point at all."""
+    tracker = PointTracker("ccot")
+    gen = torch.Generator().manual_seed(0)
+    previous = torch.rand(1, 1, 96, 128, generator=gen) * 255
+    start = torch.rand(40, 2, generator=gen) * torch.tensor([127.0, 95.0])
+    shape = (tracker.dfts[0].rows_f, 40, tracker.dfts[0].k)
+    zr, zi = torch.randn(shape, generator=gen), torch.randn(shape, generator=gen)
+    for weak in (torch.rand(40, generator=gen) < 0.3, torch.zeros(40, dtype=torch.bool)):
+        eager = tracker._fails_backward(weak, previous, start, zr, zi)
+        monkeypatch.setattr(torch.compiler, "is_exporting", lambda: True)
+        exported = tracker._fails_backward(weak, previous, start, zr, zi)
+        monkeypatch.undo()
+        assert torch.equal(eager, exported) and not (eager & ~weak).any()
+    assert eager.sum() == 0 and exported.sum() == 0
+
+
 def test_weak_peak_threshold_is_relative_to_the_geometric_mean_psr():
     tracker = PointTracker("ccot", psr_relative=0.3)
     psr = torch.tensor([4.0, 16.0, 9.0, 1.0, float("nan"), 100.0])
