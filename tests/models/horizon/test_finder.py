@@ -25,3 +25,11 @@ def test_finder_takes_any_width(width):
     assert torch.allclose(out.reshape(2, 2, 2).norm(dim=-1), torch.ones(2, 2), atol=1e-5)
     pitch, roll = sincos_to_angles(out)
     assert pitch.shape == roll.shape == (2,)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_untrained_finder_starts_near_level(seed):
+    """An L1 loss on (sin, cos) holds a pair that starts near cos = -1 at 180 degrees, so training starts level."""
+    torch.manual_seed(seed)
+    pitch, roll = sincos_to_angles(HorizonFinder("resnet18", stage="layer2").eval()(torch.rand(4, 3, 32, 256)))
+    assert torch.cat([pitch, roll]).abs().max() < math.radians(30)
