@@ -60,41 +60,42 @@ class Dataset:
     occluded: np.ndarray | None = None
 
 
-def detect(frame: np.ndarray, n: int) -> np.ndarray:
-    """Up to ``n`` good features to track in a uint8 frame (quality 0.003, 3 px apart), as (x, y) float64."""
+def detect(frame: np.ndarray, n: int, spacing: int = 3) -> np.ndarray:
+    """Up to ``n`` good features to track in a uint8 frame (quality 0.003, ``spacing`` px apart), as (x, y)
+    float64."""
     return (
-        good_features_to_track(torch.from_numpy(frame.astype(np.float32)), n, 0.003, 3)
+        good_features_to_track(torch.from_numpy(frame.astype(np.float32)), n, 0.003, spacing)
         .numpy()
         .astype(np.float64)
     )
 
 
-def sintel_dataset(folder: str | Path, n_points: int) -> Dataset:
+def sintel_dataset(folder: str | Path, n_points: int, spacing: int = 3) -> Dataset:
     """Sintel folder from its first ground-truth flow on, over every consecutive ground-truth flow (one pair
     in ``../shared/data``), ground truth chained from flow with occluded and divergent points removed."""
     pairs = read_sintel_sequence(folder)
     frames = [pairs[0].frame0] + [p.frame1 for p in pairs]
     frames = np.stack(frames).round().clip(0, 255).astype(np.uint8)
-    points = detect(frames[0], n_points)
+    points = detect(frames[0], n_points, spacing)
     tracks, valid = tracks_from_flow(points, [p.flow for p in pairs], [p.bad for p in pairs])
     return Dataset(frames, points, tracks[-1], valid[-1])
 
 
-def synthetic_dataset(n_frames: int, n_points: int, seed: int = 0) -> Dataset:
+def synthetic_dataset(n_frames: int, n_points: int, seed: int = 0, spacing: int = 3) -> Dataset:
     """Synthetic sequence (large motion, blur, noise, brightness change), ground truth at the last frame."""
     seq = synthetic_sequence(frames=n_frames, seed=seed)
     frames = seq.frames.round().clip(0, 255).astype(np.uint8)
-    points = detect(frames[0], n_points)
+    points = detect(frames[0], n_points, spacing)
     tracks, valid = seq.track(points)
     return Dataset(frames, points, tracks[-1], valid[-1])
 
 
-def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0) -> Dataset:
+def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0, spacing: int = 3) -> Dataset:
     """The synthetic sequence under one stress condition (:mod:`data.flow.stress`), ground truth at the last
     frame."""
     seq = stress_sequence(condition, frames=n_frames, seed=seed)
     frames = seq.frames.round().clip(0, 255).astype(np.uint8)
-    points = detect(frames[0], n_points)
+    points = detect(frames[0], n_points, spacing)
     tracks, valid = seq.track(points)
     occluded = seq.hidden(tracks).any(0) if seq.occluder is not None else None
     return Dataset(frames, points, tracks[-1], valid[-1], occluded)
@@ -246,7 +247,8 @@ def plot_conditions(result: dict, path: str | Path) -> None:
 
 def plot(result: dict, path: str | Path) -> None:
     """EPE distributions (log-spaced histogram, mean inlier EPE in the legend) and precision curves (value at 3 px
-    in the legend) per dataset, like thesis figure 3.3; with several datasets also the per-condition bars
+    in the legend) per dataset, like thesis figure 3.3, four datasets to a row; with several datasets also the
+    per-condition bars
     (:func:`plot_conditions`) beside it, as ``<path stem>_conditions.png``."""
     import matplotlib
 
@@ -256,21 +258,25 @@ def plot(result: dict, path: str | Path) -> None:
     if len(result) > 1:
         path = Path(path)
         plot_conditions(result, path.with_name(f"{path.stem}_conditions{path.suffix}"))
-    fig, axes = plt.subplots(len(result), 2, figsize=(11, 3.6 * len(result)), squeeze=False)
+    # two panels (EPE histogram, precision curve) per dataset, four datasets to a row
+    columns = min(len(result), 4)
+    rows = -(-len(result) // columns)
+    fig, axes = plt.subplots(rows, 2 * columns, figsize=(5.2 * columns, 3.4 * rows), squeeze=False)
+    for ax in axes.flat[2 * len(result):]:
+        ax.set_axis_off()
     bins = np.logspace(-3, 2, 51)
     taus = np.linspace(0, 5, 101)
-    for row, (name, ds) in zip(axes, result.items(), strict=True):
+    for i, (name, ds) in enumerate(result.items()):
+        hist, curve = axes[i // columns, 2 * (i % columns)], axes[i // columns, 2 * (i % columns) + 1]
         for method, m in ds["methods"].items():
             epe, tracked = np.maximum(np.asarray(m["epe"]), 1e-3), np.asarray(m["tracked"])
-            row[0].hist(
-                epe, bins, histtype="step", density=False, label=f"{method} ({m['inlier_epe_mean']:.2f})"
-            )
+            hist.hist(epe, bins, histtype="step", density=False, label=f"{method} ({m['inlier_epe_mean']:.2f})")
             precision = [(tracked & (epe < t)).mean() for t in taus]
-            row[1].plot(taus, precision, label=f"{method} ({m['precision_at']['3']:.3f})")
-        row[0].set(xscale="log", xlabel="EPE (px)", ylabel="points", title=f"{name}: EPE distribution")
-        row[1].set(xlabel="threshold (px)", ylabel="precision", title=f"{name}: precision", ylim=(0, 1))
-        row[0].legend(fontsize=8)
-        row[1].legend(fontsize=8, loc="lower right")
+            curve.plot(taus, precision, label=f"{method} ({m['precision_at']['3']:.3f})")
+        hist.set(xscale="log", xlabel="EPE (px)", ylabel="points", title=f"{name}: EPE")
+        curve.set(xlabel="threshold (px)", ylabel="precision", title=f"{name}: precision", ylim=(0, 1))
+        hist.legend(fontsize=7)
+        curve.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
@@ -339,6 +345,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
+    parser.add_argument("--spacing", type=int, default=3,
+                        help="least distance between detected points in px")
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument(
         "--compile",
@@ -367,11 +375,13 @@ def main(argv: list[str] | None = None) -> int:
         datasets = {}
         for folder in args.sintel:
             path = Path(folder)
-            datasets[f"{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points)
+            datasets[f"{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points, args.spacing)
         if args.synthetic or not (datasets or args.stress is not None):
-            datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed)
+            datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
         for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:
-            datasets[f"stress_{condition}"] = stress_dataset(condition, args.frames, args.points, args.seed)
+            datasets[f"stress_{condition}"] = stress_dataset(
+                condition, args.frames, args.points, args.seed, args.spacing
+            )
         methods = [*args.methods, *([COMPILED] if args.compile else [])]
         result = evaluate(datasets, methods, args.device, args.repeats)
     if args.plot:
