@@ -35,7 +35,8 @@ bench: $(STAMP)
 	mkdir -p docs/figures
 	$(PY) -m bench.triangulation --points 1000000 --compile --json --plot docs/figures/triangulation.png
 	$(PY) -m bench.point_tracking --sintel $(SHARED)/sintel/alley_1/clean $(SHARED)/sintel/alley_1/final \
-		--synthetic --compile --json --plot docs/figures/point_tracking.png
+		$(wildcard $(SHARED)/middlebury/*) --synthetic --stress --methods ccot mosse klt --json \
+		--plot docs/figures/point_tracking.png
 	$(PY) -m bench.localization --json --plot docs/figures/localization.png
 	$(PY) -m bench.vos --synthetic --json
 
