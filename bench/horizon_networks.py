@@ -82,9 +82,23 @@ def evaluate_chain(finder: Path, segmenter: Path, data: Path, input_width: int =
 
 
 def print_table(metrics: dict[str, float]) -> None:
-    for key in sorted(metrics):
-        if key.endswith("_median") or "failure" in key:
-            print(f"{key:>58}: {metrics[key]:.4g}")
+    """One row per held-out frame set (all, clean, degraded): failure rates and medians of the networks against
+    the classical pipeline (``net / classical``), and of the chain finder -> levelling -> segmenter."""
+    def get(key: str) -> float:
+        return metrics.get(key, float("nan"))
+
+    print(f"{'frames':9s} {'finder fail %':>14s} {'pitch deg':>12s} {'roll deg':>12s} {'segm. fail %':>13s} "
+          f"{'horizon px':>13s} {'chain fail %':>12s} {'chain px':>8s}")
+    print(f"{'':9s} {'net / class.':>14s} {'net / class.':>12s} {'net / class.':>12s} {'net / class.':>13s} "
+          f"{'net / class.':>13s}")
+    for subset in ("all", "clean", "degraded"):
+        f, s, c = f"finder/{subset}/", f"segmenter/{subset}/", f"chain/{subset}/"
+        print(f"{subset:9s} {100 * get(f + 'failure_rate'):6.1f} / {100 * get(f + 'classical_failure_rate'):5.1f} "
+              f"{get(f + 'pitch_deg_median'):5.2f} / {get(f + 'classical_pitch_deg_median'):4.2f} "
+              f"{get(f + 'roll_deg_median'):5.2f} / {get(f + 'classical_roll_deg_median'):4.2f} "
+              f"{100 * get(s + 'failure_rate'):5.1f} / {100 * get(s + 'classical_failure_rate'):5.1f} "
+              f"{get(s + 'horizon_px_median'):5.3f} / {get(s + 'classical_horizon_px_median'):5.3f} "
+              f"{100 * get(c + 'failure_rate'):12.1f} {get(c + 'horizon_px_median'):8.3f}")
 
 
 def plot_failures(metrics: dict[str, float], path: Path) -> None:

@@ -46,8 +46,11 @@ KNOWN_THIRD_PARTY_WARNINGS = (
 )
 
 
-#: Lightning's start-up banners and advertising tips (log messages as regular expressions).
-LIGHTNING_BANNERS = re.compile(r"^(💡 Tip:|(GPU|TPU|HPU|IPU) available|Seed set to|You are using a CUDA device)")
+#: Lightning's start-up banners, advertising tips and set-up chatter (log messages as regular expressions).
+LIGHTNING_BANNERS = re.compile(
+    r"^(💡 Tip:|(GPU|TPU|HPU|IPU) available|Seed set to|You are using a CUDA device"
+    r"|Loading `train_dataloader` to estimate number of stepping batches)"
+)
 
 
 class _DropBanners(logging.Filter):
@@ -59,7 +62,9 @@ def quiet_console() -> None:
     """One line per stage: Lightning's banners and tips and the known third-party warnings above are silenced;
     Lightning's other messages (restoring a checkpoint, a stopped fit) and real warnings stay. For commands and
     the demo, not for library use or tests."""
-    for name in ("lightning.pytorch.utilities.rank_zero", "lightning.fabric.utilities.rank_zero"):
+    loggers = ("lightning.pytorch.utilities.rank_zero", "lightning.fabric.utilities.rank_zero",
+               "lightning.fabric.utilities.seed")
+    for name in loggers:
         logger = logging.getLogger(name)  # the loggers Lightning's rank_zero_info writes to, whenever it is imported
         if not any(isinstance(f, _DropBanners) for f in logger.filters):
             logger.addFilter(_DropBanners())
