@@ -13,7 +13,9 @@ import pytest
 from cli.demo import DEMOS
 
 ROOT = Path(__file__).resolve().parents[2]
-NOISE = re.compile(r"GPU available|TPU available|💡 Tip|Seed set to|Loading `train_dataloader`|litlogger|[Dd]eprecat|Warning:|it/s\]")
+NOISE = re.compile(
+    r"GPU available|TPU available|💡 Tip|Seed set to|Loading `train_dataloader`|litlogger|[Dd]eprecat|Warning:|it/s\]"
+)
 
 
 @pytest.mark.slow
