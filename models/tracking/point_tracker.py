@@ -230,10 +230,10 @@ class PointTracker(nn.Module):
         x, y = positions[:, 0], positions[:, 1]
         return torch.isfinite(positions).all(-1) & (x >= 0) & (x <= w - 1) & (y >= 0) & (y <= h - 1)
 
-    def _learn(self, filters: Tensor | None, zr: Tensor, zi: Tensor, eta: Tensor, level: int) -> Tensor:
+    def _learn(self, filters: Tensor | None, zr: Tensor, zi: Tensor, eta: Tensor | None, level: int) -> Tensor:
         """Blend one sample per point (band-limited spectrum ``(2M + 1, P, M + 1)``) into a level's filters with
         weight ``eta`` ``(P,)`` (MOSSE's running update; for C-COT the sample memory with exponentially decaying
-        weights, kept as running sums). ``filters`` None starts from scratch."""
+        weights, kept as running sums). ``filters`` None starts from scratch (``eta`` unused)."""
         y = getattr(self, f"label_{level}")
         new = torch.stack([zr * y, -zi * y, zr.square() + zi.square()])
         return new if filters is None else torch.lerp(filters, new, eta[:, None])
@@ -297,10 +297,7 @@ class PointTracker(nn.Module):
         for level in reversed(range(self.levels)):
             centre = (start + d + 0.5) / 2**level - 0.5
             zr, zi = self._sample(pyramid[level], centre, level)
-            ar, ai, b = filters[level].unbind(0)
-            mean_energy = b.sum(0).sum(1, keepdim=True) / (b.shape[0] * b.shape[2])  # (P, 1), outer axis first
-            inv = 1 / (b + self.reg_rel * mean_energy)
-            spectrum = torch.cat([(ar * zr - ai * zi) * inv, (ar * zi + ai * zr) * inv], -1)
+            spectrum = self._response(filters[level], zr, zi)
             score = self.dfts[level].inverse(spectrum)  # (N, P, N)
             argmax = interleaved_argmax(score)
             d = d + 2**level * self._peak(spectrum, score, argmax, level)
@@ -345,14 +342,17 @@ class PointTracker(nn.Module):
         few px read up to about 20 % short). A point that an occluder covered or that locked onto another
         structure comes back elsewhere; one tracked correctly through blur, noise or a brightness change comes
         back home."""
-        y = self.label_0
-        energy = zr.square() + zi.square()
-        mean_energy = energy.sum(0).sum(1, keepdim=True) / (energy.shape[0] * energy.shape[2])
-        weight = y / (energy + self.reg_rel * mean_energy)
-        ar, ai = zr * weight, -zi * weight  # conj(z) y / (|z|^2 + reg)
-        pr, pi = self._sample(previous, start, 0)
-        score = self.dfts[0].inverse(torch.cat([ar * pr - ai * pi, ar * pi + ai * pr], -1))
+        new_sample_filter = self._learn(None, zr, zi, None, 0)
+        score = self.dfts[0].inverse(self._response(new_sample_filter, *self._sample(previous, start, 0)))
         return interleaved_peak(score)[0].norm(dim=-1)
+
+    def _response(self, filters: Tensor, zr: Tensor, zi: Tensor) -> Tensor:
+        """Score spectrum ``[re | im]`` ``(2M + 1, P, 2M + 2)`` of a level's filters ``(3, 2M + 1, P, M + 1)`` (see
+        :class:`TrackerState`) on sample spectra ``(2M + 1, P, M + 1)``: ``A Z / (B + reg_rel mean(B))``."""
+        ar, ai, b = filters.unbind(0)
+        mean_energy = b.sum(0).sum(1, keepdim=True) / (b.shape[0] * b.shape[2])  # (P, 1), outer axis first
+        inv = 1 / (b + self.reg_rel * mean_energy)
+        return torch.cat([(ar * zr - ai * zi) * inv, (ar * zi + ai * zr) * inv], -1)
 
     def _lost_threshold(self, psr: Tensor, lost: Tensor) -> Tensor:
         """The PSR below which a point's peak is weak in this frame: ``psr_relative`` times the geometric mean PSR
