@@ -19,11 +19,16 @@ from data.vos.synthetic import synthetic_video, synthetic_video_seeds
 def training_sample(
     frames: torch.Tensor, labels: torch.Tensor, obj: int, ref: int, tests: Sequence[int]
 ) -> dict[str, torch.Tensor]:
-    """One training sample: reference frame/mask and test frames/masks of object ``obj`` (float in [0, 1])."""
+    """One training sample of object ``obj``: reference frame/mask and test frames/masks (float in [0, 1]), their
+    distractor masks (the other annotated objects, thesis ch. 6.2; void 255 and unannotated frames -1 are
+    neither) and ``has_distractors``, whether ``labels`` annotate any other object at all."""
     frames = frames.float() / 255 if frames.dtype == torch.uint8 else frames
     masks = (labels == obj).float()
+    others = (labels > 0) & (labels != obj) & (labels != 255)
     idx = torch.tensor(list(tests))
-    return {"ref_image": frames[ref], "ref_mask": masks[ref], "test_images": frames[idx], "test_masks": masks[idx]}
+    return {"ref_image": frames[ref], "ref_mask": masks[ref], "test_images": frames[idx], "test_masks": masks[idx],
+            "ref_distractor": others[ref].float(), "test_distractors": others[idx].float(),
+            "has_distractors": others.any()}
 
 
 def _resize_video(frames: torch.Tensor, labels: torch.Tensor, scale: float) -> tuple[torch.Tensor, torch.Tensor]:
@@ -61,7 +66,8 @@ class SyntheticTrainingSamples(Dataset):
 class SequenceTrainingSamples(Dataset):
     """Samples from annotated videos (e.g. DAVIS): random sequence, object, reference frame and test frames
     within ``max_gap`` after it, with the object at least ``min_pixels`` large in the reference frame; with
-    probability ``hflip`` the whole sample is mirrored left-right."""
+    probability ``hflip`` the whole sample is mirrored left-right; with ``crop`` (h, w) every frame of a sample
+    is cut to the same window, centred on the target in the reference frame give or take a quarter window."""
 
     def __init__(
         self,
@@ -73,9 +79,13 @@ class SequenceTrainingSamples(Dataset):
         scale: float = 1.0,
         hflip: float = 0.0,
         seed: int = 0,
+        crop: tuple[int, int] | list[int] | None = None,
     ) -> None:
         if not sequences:
             raise InputError("no training sequences")
+        if crop is not None and (len(crop) != 2 or min(crop) < 16):
+            raise InputError(f"crop must be (height, width) of at least 16 px, got {crop}")
+        self.crop = None if crop is None else (int(crop[0]), int(crop[1]))
         self.sequences = sequences
         self.n_samples = n_samples
         self.n_test_frames = n_test_frames
@@ -94,26 +104,51 @@ class SequenceTrainingSamples(Dataset):
             self._cache[s] = _resize_video(*self.sequences[s].load(), self.scale)
         return self._cache[s]
 
+    def pick_reference(self, gen: torch.Generator, labels: torch.Tensor) -> tuple[int, torch.Tensor] | None:
+        """A random reference frame among the annotated ones (labels >= 0; YouTube-VOS annotates every 5th) but
+        the last, and the annotated frames after it; None for a video with fewer than two."""
+        annotated = torch.nonzero((labels >= 0).flatten(1).any(1))[:, 0]
+        if annotated.numel() < 2:
+            return None
+        r = int(torch.randint(annotated.numel() - 1, (), generator=gen))
+        return int(annotated[r]), annotated[r + 1 :]
+
+    def pick_tests(self, gen: torch.Generator, later: torch.Tensor) -> list[int]:
+        """``n_test_frames`` test frames (sorted, repeats allowed) among the first ``max_gap`` of ``later``."""
+        later = later[: self.max_gap]
+        return later[torch.randint(len(later), (self.n_test_frames,), generator=gen)].sort().values.tolist()
+
+    def pick_object(self, gen: torch.Generator, labels: torch.Tensor) -> int | None:
+        """A random object of at least ``min_pixels`` pixels in a label map, or None."""
+        ids = [k for k in labels.unique().tolist() if 0 < k < 255 and int((labels == k).sum()) >= self.min_pixels]
+        return ids[int(torch.randint(len(ids), (), generator=gen))] if ids else None
+
+    def mirror(self, gen: torch.Generator, sample: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """The sample mirrored left-right with probability ``hflip``, then cut to ``crop``."""
+        if float(torch.rand((), generator=gen)) < self.hflip:
+            sample = {k: v.flip(-1) if v.ndim >= 2 else v for k, v in sample.items()}
+        if self.crop is None:
+            return sample
+        h, w = sample["ref_mask"].shape
+        ch, cw = min(self.crop[0], h), min(self.crop[1], w)
+        ys, xs = torch.nonzero(sample["ref_mask"] > 0.5, as_tuple=True)
+        cy, cx = (float(ys.float().mean()), float(xs.float().mean())) if ys.numel() else (h / 2, w / 2)
+        jitter = (torch.rand(2, generator=gen) - 0.5) / 2
+        top = int(min(max(cy - ch / 2 + float(jitter[0]) * ch, 0), h - ch))
+        left = int(min(max(cx - cw / 2 + float(jitter[1]) * cw, 0), w - cw))
+        return {k: v[..., top : top + ch, left : left + cw] if v.ndim >= 2 else v for k, v in sample.items()}
+
     def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
         gen = torch.Generator().manual_seed(self.seed * 1_000_003 + i)
         for _ in range(100):
             s = int(torch.randint(len(self.sequences), (), generator=gen))
             frames, labels = self._load(s)
-            t = frames.shape[0]
-            if t < 2:
+            picked = self.pick_reference(gen, labels)
+            obj = None if picked is None else self.pick_object(gen, labels[picked[0]])
+            if obj is None:
                 continue
-            ref = int(torch.randint(t - 1, (), generator=gen))
-            ids = [k for k in labels[ref].unique().tolist() if 0 < k < 255]
-            ids = [k for k in ids if int((labels[ref] == k).sum()) >= self.min_pixels]
-            if not ids:
-                continue
-            obj = ids[int(torch.randint(len(ids), (), generator=gen))]
-            later = torch.arange(ref + 1, min(t, ref + self.max_gap + 1))
-            pick = later[torch.randint(len(later), (self.n_test_frames,), generator=gen)].sort().values
-            sample = training_sample(frames, labels, obj, ref, pick.tolist())
-            if float(torch.rand((), generator=gen)) < self.hflip:
-                sample = {k: v.flip(-1) for k, v in sample.items()}
-            return sample
+            ref, later = picked
+            return self.mirror(gen, training_sample(frames, labels, obj, ref, self.pick_tests(gen, later)))
         raise InputError("no sequence yields a training sample (objects too small or videos too short)")
 
 
@@ -131,7 +166,8 @@ class VideoDataset(Dataset):
         return {"name": name, "frames": frames, "labels": labels}
 
 
-def _single(batch: list[dict]) -> dict:
+def first_item(batch: list[dict]) -> dict:
+    """Collate of batch size 1: the one item (whole videos are not stacked)."""
     return batch[0]
 
 
@@ -193,7 +229,7 @@ class SyntheticVOSDataModule(L.LightningDataModule):
     def _videos(self, split: str, n: int) -> DataLoader:
         h = self.hparams
         videos = synthetic_videos(split, n, h.seed, n_frames=h.n_frames, **self._video_args(h.eval_objects))
-        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=_single)
+        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=first_item)
 
     def val_dataloader(self) -> DataLoader:
         return self._videos("val", self.hparams.val_videos)
@@ -251,7 +287,7 @@ class DavisVOSDataModule(L.LightningDataModule):
         for seq in self._sequences(h.val_split, h.val_sequences):
             frames, labels = seq.load(h.val_max_frames)
             videos.append((seq.name, *_resize_video(frames, labels, h.scale)))
-        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=_single)
+        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=first_item)
 
     def val_dataloader(self) -> DataLoader:
         return self._videos()

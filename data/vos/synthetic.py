@@ -71,6 +71,7 @@ def synthetic_video(
     motion: float = 1.0,
     times: list[int] | None = None,
     object_scale: tuple[float, float] | list[float] = (0.15, 0.3),
+    lookalike: bool = False,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """One synthetic video.
 
@@ -84,6 +85,8 @@ def synthetic_video(
         times: render only these frame indices (same pixels as in the full video); None = all n_frames.
         object_scale: (low, high) range of an object's base radius as a fraction of min(height, width); the
             drawn shape reaches ~0.9 of it (default (0.15, 0.3): objects 27-54 % of the short side across).
+        lookalike: the labelled objects 2.. are look-alikes of object 1: its shape, and its texture with the
+            distractors' colour jitter (they still move, scale and turn on their own).
 
     Returns:
         frames (T, 3, H, W) float32 RGB in [0, 1] and labels (T, H, W) int64 (0 = background); T = len(times)
@@ -125,10 +128,17 @@ def synthetic_video(
         jitter = 1 + 0.15 * (torch.rand(3, 1, 1, generator=gen) - 0.5)
         textures.append((textures[d % n_objects] * jitter).clamp(0, 1))
     order = torch.randperm(n_layers, generator=gen).tolist()
+    shared_shape = None
+    if lookalike:
+        shared_shape = _shape(gen, 64)
+        for i in range(1, n_objects):
+            textures[i] = (textures[0] * (1 + 0.15 * (torch.rand(3, 1, 1, generator=gen) - 0.5))).clamp(0, 1)
     size = min(height, width)
     for layer in order:
         label = layer + 1 if layer < n_objects else 0
         alpha = _shape(gen, 64)
+        if shared_shape is not None and layer < n_objects:
+            alpha = shared_shape
         r0 = rnd(float(object_scale[0]), float(object_scale[1])) * size
         start = int(rnd(1, n_frames / 2)) if late_objects and 1 <= layer < n_objects and n_frames > 2 else 0
         speed = rnd(0.005, 0.025) * width * motion

@@ -2,6 +2,9 @@
 deepest backbone stage to the shallowest, each with a target segmentation encoder (TSE) that injects the
 resized target-model score, refinement residual blocks (RRB) and a channel attention block (CAB), followed by
 the upsampler from stride 4 to image resolution.
+
+FRTM's score has one channel and the decoder one output logit; LWL and DAVOS (thesis ch. 6) feed it the
+K-channel mask encoding their target model predicts, and DAVOS reads two logits (target, distractor).
 """
 
 from __future__ import annotations
@@ -20,21 +23,23 @@ def _conv(cin: int, cout: int, k: int) -> nn.Conv2d:
 class TSE(nn.Module):
     """Target segmentation encoder: reduce backbone features, concatenate the score, transform.
 
-    1x1 (C_l -> m), ReLU, 1x1 (m -> m); concat score (m + 1); 3x3 (m+1 -> m+1), ReLU, 3x3 (m+1 -> m+1), ReLU,
-    3x3 (m+1 -> m), ReLU. Also returns the global average pool of the reduced features (used by the deepest CAB).
+    1x1 (C_l -> m), ReLU, 1x1 (m -> m); concat the S score channels (m + S); 3x3 (m+S -> m+S), ReLU,
+    3x3 (m+S -> m+S), ReLU, 3x3 (m+S -> m), ReLU. Also returns the global average pool of the reduced features
+    (used by the deepest CAB).
     """
 
-    def __init__(self, in_channels: int, mdim: int = 64) -> None:
+    def __init__(self, in_channels: int, mdim: int = 64, score_channels: int = 1) -> None:
         super().__init__()
+        wide = mdim + score_channels
         self.reduce = nn.Sequential(_conv(in_channels, mdim, 1), nn.ReLU(inplace=True), _conv(mdim, mdim, 1))
         self.transform = nn.Sequential(
-            _conv(mdim + 1, mdim + 1, 3), nn.ReLU(inplace=True),
-            _conv(mdim + 1, mdim + 1, 3), nn.ReLU(inplace=True),
-            _conv(mdim + 1, mdim, 3), nn.ReLU(inplace=True),
+            _conv(wide, wide, 3), nn.ReLU(inplace=True),
+            _conv(wide, wide, 3), nn.ReLU(inplace=True),
+            _conv(wide, mdim, 3), nn.ReLU(inplace=True),
         )
 
     def forward(self, features: torch.Tensor, score: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(N, C_l, h, w), (N, 1, h, w) -> (N, m, h, w), pooled (N, m, 1, 1)."""
+        """(N, C_l, h, w), (N, S, h, w) -> (N, m, h, w), pooled (N, m, 1, 1)."""
         x = self.reduce(features)
         pooled = F.adaptive_avg_pool2d(x, 1)
         return self.transform(torch.cat([x, score], 1)), pooled
@@ -112,12 +117,12 @@ def bicubic_upsample2x(x: torch.Tensor) -> torch.Tensor:
 
 
 class Upsampler(nn.Module):
-    """Stride 4 to image size: bicubic 2x, 3x3 (m -> m/2), ReLU, bicubic 2x, bilinear to size, 3x3 (m/2 -> 1)."""
+    """Stride 4 to image size: bicubic 2x, 3x3 (m -> m/2), ReLU, bicubic 2x, bilinear to size, 3x3 (m/2 -> O)."""
 
-    def __init__(self, mdim: int = 64) -> None:
+    def __init__(self, mdim: int = 64, out_channels: int = 1) -> None:
         super().__init__()
         self.conv1 = _conv(mdim, mdim // 2, 3)
-        self.conv2 = _conv(mdim // 2, 1, 3)
+        self.conv2 = _conv(mdim // 2, out_channels, 3)
 
     def forward(self, x: torch.Tensor, size: tuple[int, int]) -> torch.Tensor:
         x = F.relu(self.conv1(bicubic_upsample2x(x)))
@@ -127,12 +132,14 @@ class Upsampler(nn.Module):
 
 
 class SegmentationDecoder(nn.Module):
-    """Decoder from a target-model score and backbone features to a full-resolution logit.
+    """Decoder from a target-model score and backbone features to full-resolution logits.
 
     Args:
         in_channels: ``{stage: channels}`` of the backbone stages used, e.g. ``ResNetBackbone.channels``.
         mdim: width of the decoder (FRTM 64).
         stages: stages in decoding order, deepest first.
+        score_channels: S, channels of the score (FRTM 1; LWL/DAVOS the K channels of the mask encoding).
+        out_channels: O, output logits (FRTM and LWL 1; DAVOS 2: target and distractor).
     """
 
     def __init__(
@@ -140,17 +147,21 @@ class SegmentationDecoder(nn.Module):
         in_channels: dict[str, int],
         mdim: int = 64,
         stages: tuple[str, ...] | list[str] = ("layer4", "layer3", "layer2", "layer1"),
+        score_channels: int = 1,
+        out_channels: int = 1,
     ) -> None:
         super().__init__()
         missing = [s for s in stages if s not in in_channels]
         if missing:
             raise InputError(f"decoder stages {missing} have no channel count in {in_channels}")
         self.stages = tuple(stages)
-        self.tse = nn.ModuleDict({s: TSE(in_channels[s], mdim) for s in self.stages})
+        if score_channels < 1 or out_channels < 1:
+            raise InputError(f"decoder score and output channels must be >= 1, got {score_channels}, {out_channels}")
+        self.tse = nn.ModuleDict({s: TSE(in_channels[s], mdim, score_channels) for s in self.stages})
         self.rrb1 = nn.ModuleDict({s: RRB(mdim, mdim) for s in self.stages})
         self.cab = nn.ModuleDict({s: CAB(mdim) for s in self.stages})
         self.rrb2 = nn.ModuleDict({s: RRB(mdim, mdim) for s in self.stages})
-        self.upsampler = Upsampler(mdim)
+        self.upsampler = Upsampler(mdim, out_channels)
         self._init_weights()
 
     def _init_weights(self) -> None:
@@ -165,7 +176,7 @@ class SegmentationDecoder(nn.Module):
                 nn.init.zeros_(module.bias)
 
     def forward(self, score: torch.Tensor, features: dict[str, torch.Tensor], size: tuple[int, int]) -> torch.Tensor:
-        """Logits (N, 1, H, W) from scores (N, 1, h, w) and features ``{stage: (N or 1, C_l, h_l, w_l)}``.
+        """Logits (N, O, H, W) from scores (N, S, h, w) and features ``{stage: (N or 1, C_l, h_l, w_l)}``.
 
         Features with batch 1 are shared by all N scores (several objects in one frame).
         """

@@ -12,21 +12,15 @@ target model; otherwise the fitted filters are treated as constants.
 from __future__ import annotations
 
 import contextlib
-import time
-from pathlib import Path
 
-import lightning as L
 import torch
 import torch.nn.functional as F
 
-from core.errors import InputError
 from models.backbones import build_backbone
-from models.checkpoint import read_checkpoint
-from models.distributed import gather_dicts, gather_objects
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder
+from models.vos.lit_evaluation import VOSEvaluation
 from models.vos.losses import segmentation_loss
-from models.vos.metrics import evaluate_sequence, summarize, write_csv
 from models.vos.optimizer import GaussNewtonCG, build_optimizer
 from models.vos.target_features import TargetFeatures
 from models.vos.target_model import apply_filter, project, target_model_init
@@ -34,7 +28,7 @@ from models.vos.tracker import FRTMTracker
 from models.vos.tracker_settings import FRTMSettings
 
 
-class FRTMSegmentation(L.LightningModule):
+class FRTMSegmentation(VOSEvaluation):
     """FRTM video object segmentation system.
 
     Args:
@@ -105,20 +99,6 @@ class FRTMSegmentation(L.LightningModule):
         if isinstance(optimizer, GaussNewtonCG):
             optimizer.direction_forget = 0.9**75
         self.fit_optimizer = optimizer
-        self._eval: dict[str, dict[int, dict[str, float]]] = {}
-        self._frames = 0
-        self._seconds = 0.0
-
-    def setup(self, stage: str) -> None:
-        """Load ``init_checkpoint``'s weights before fitting (before Lightning restores a ``--ckpt_path``)."""
-        path = self.hparams.init_checkpoint
-        if stage != "fit" or not path:
-            return
-        state = read_checkpoint(path, "init_checkpoint")["state_dict"]
-        try:
-            self.load_state_dict(state)
-        except RuntimeError as err:  # missing, unexpected or differently shaped weights
-            raise InputError(f"init_checkpoint {path} does not match this model: {err}") from err
 
     def tracker_settings(self, **overrides) -> FRTMSettings:
         """The tracker settings: this system's feature input, its ``tracker`` hyper-parameters, then ``overrides``."""
@@ -178,51 +158,6 @@ class FRTMSegmentation(L.LightningModule):
         self.log("train/loss", loss, prog_bar=True)
         self.log("train/iou", iou, prog_bar=True)
         return loss
-
-    def _evaluate(self, batch: dict) -> None:
-        frames, labels = batch["frames"], batch["labels"]
-        tracker = self.make_tracker()
-        start = time.perf_counter()
-        pred = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
-        self._seconds += time.perf_counter() - start
-        self._frames += frames.shape[0]
-        self._eval[batch["name"]] = evaluate_sequence(pred.cpu(), labels.cpu())
-
-    def on_validation_epoch_start(self) -> None:
-        self._eval, self._frames, self._seconds = {}, 0, 0.0
-
-    on_test_epoch_start = on_validation_epoch_start
-
-    def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self._evaluate(batch)
-
-    def test_step(self, batch: dict, batch_idx: int) -> None:
-        self._evaluate(batch)
-
-    def _report(self, stage: str) -> dict[str, float]:
-        """J&F over every object of every sequence (gathered over the ranks of a distributed run) and FPS."""
-        self._eval = gather_dicts(self._eval)
-        frames, seconds = (sum(v) for v in zip(*gather_objects((self._frames, self._seconds)), strict=True))
-        glob = summarize(self._eval)
-        fps = frames / max(seconds, 1e-9)
-        self.log_dict({f"{stage}/jf": glob["J&F-Mean"], f"{stage}/j": glob["J-Mean"], f"{stage}/f": glob["F-Mean"],
-                       f"{stage}/fps": fps}, prog_bar=stage == "val")
-        return {**glob, "FPS": fps}
-
-    def on_validation_epoch_end(self) -> None:
-        if self._eval:
-            self._report("val")
-
-    def on_test_epoch_end(self) -> None:
-        if not self._eval:
-            return
-        result = self._report("test")
-        log_dir = Path(self.trainer.log_dir or ".") if self.trainer is not None else Path(".")  # on every rank
-        if self.global_rank != 0:
-            return
-        write_csv(self._eval, log_dir / "per_sequence.csv")
-        print(f"J&F {100 * result['J&F-Mean']:.1f}  J {100 * result['J-Mean']:.1f}  F {100 * result['F-Mean']:.1f}  "
-              f"FPS {result['FPS']:.2f}  ({len(self._eval)} sequences; per object: {log_dir / 'per_sequence.csv'})")
 
     def configure_optimizers(self):
         h = self.hparams

@@ -70,18 +70,26 @@ def memory_insert(
     pixel_weights: torch.Tensor,
     valid: torch.Tensor,
     lr: float = 0.1,
+    keep_first: float = 0.0,
 ) -> Memory:
     """Insert one sample per problem where ``valid``.
 
     Args:
         memory: the current memory.
-        features: (B, C, h, w); labels, pixel_weights: (B, H, W).
+        features: (B, C, h, w); labels, pixel_weights: (B, H, W) (or any trailing shape matching the memory's).
         valid: (B,) bool; problems where it is False keep their memory unchanged.
         lr: learning rate of the weight decay (FRTM 0.1).
+        keep_first: with a value > 0 (LWL: 0.25) slot 0, the first frame, is never replaced and keeps at least
+            this share of the total weight (the other weights are scaled down to make room).
     """
     w = memory.weights
     n = w.shape[1]
-    slot = torch.argmin(w, dim=1)  # first empty slot, else the lightest
+    if keep_first > 0 and n < 2:
+        raise InputError(f"keep_first needs a memory of at least 2 slots, got {n}")
+    candidates = w
+    if keep_first > 0:
+        candidates = torch.cat([torch.full_like(w[:, :1], float("inf")), w[:, 1:]], 1)
+    slot = torch.argmin(candidates, dim=1)  # first empty slot, else the lightest
     onehot = torch.arange(n, device=w.device)[None] == slot[:, None]
     prev = torch.gather(w, 1, memory.newest.clamp_min(0)[:, None])[:, 0]
     first = memory.newest < 0
@@ -89,6 +97,11 @@ def memory_insert(
     new_weight = torch.where(first, torch.full_like(prev, lr), prev / (1 - lr))
     w_new = torch.where(onehot, new_weight[:, None], scaled)
     w_new = w_new / w_new.sum(1, keepdim=True)
+    if keep_first > 0:
+        w_first = w_new[:, :1].clamp_min(keep_first)
+        rest = w_new[:, 1:]
+        rest = rest * (1 - w_first) / rest.sum(1, keepdim=True).clamp_min(1e-30)
+        w_new = torch.cat([w_first, rest], 1)
     keep = ~valid
     put = onehot & valid[:, None]
 

@@ -10,10 +10,7 @@ the decoder (the ``target_model_only`` baseline).
 
 from __future__ import annotations
 
-import time
-from abc import ABC, abstractmethod
-from collections import defaultdict
-from collections.abc import Iterable, Iterator
+from abc import abstractmethod
 
 import torch
 import torch.nn.functional as F
@@ -29,6 +26,7 @@ from models.vos.optimizer import build_optimizer
 from models.vos.target_features import TargetFeatures
 from models.vos.target_model import apply_filter, hinge_pixel_weights, project, target_model_init
 from models.vos.tracker_settings import FRTMSettings
+from models.vos.video_loop import VideoLoop
 
 COMPONENTS = ("backbone", "target_model", "decoder", "update", "init")
 
@@ -49,7 +47,7 @@ def frame_memory_insert(
     return memory_insert(memory, z, labels, v, valid, lr)
 
 
-class FRTMLoop(ABC):
+class FRTMLoop(VideoLoop):
     """The host side of FRTM shared by every engine: objects, memory, the update schedule and the merging of
     objects, around five computational hooks (``target_features``, ``fit_target_models``, ``segment_frame``,
     ``insert_samples``, ``optimize_filters``) that ``FRTMTracker`` runs in PyTorch and
@@ -61,25 +59,15 @@ class FRTMLoop(ABC):
 
     def __init__(self, settings: FRTMSettings) -> None:
         self.settings = settings
-        self.timings: dict[str, float] = defaultdict(float)
-        self.reset()
+        super().__init__()
 
     def reset(self) -> None:
         """Forget the current video."""
-        self.ids: list[int] = []
+        super().reset()
         self.wp: torch.Tensor | None = None
         self.wf: torch.Tensor | None = None
         self.memory: Memory | None = None
         self.cg_state = None
-        self.frame = 0
-
-    def _tic(self, device: torch.device) -> float:
-        if device.type == "cuda":
-            torch.cuda.synchronize(device)
-        return time.perf_counter()
-
-    def _toc(self, name: str, start: float, device: torch.device) -> None:
-        self.timings[name] += (self._tic(device) - start) * 1000
 
     def _label_size(self, size: tuple[int, int]) -> tuple[int, int]:
         return (max(1, size[0] // self.settings.label_stride), max(1, size[1] // self.settings.label_stride))
@@ -118,7 +106,8 @@ class FRTMLoop(ABC):
         """Re-optimise W_f on the filled memory slots."""
 
     def add_objects(self, image: torch.Tensor, labels: torch.Tensor, ids: list[int]) -> None:
-        """Train target models for new objects ``ids`` whose masks are ``labels == id`` in ``image``.
+        """Train target models for new objects ``ids`` whose masks are ``labels == id`` in ``image``: first-frame
+        augmentation, joint W_p/W_f fit, W_p frozen, memory of the projected samples, one W_f update.
 
         Args:
             image: (3, H, W) RGB in [0, 1]; labels: (H, W) int label map.
@@ -178,46 +167,6 @@ class FRTMLoop(ABC):
         if self.frame % self.settings.update_every == 0:
             self.optimize_filters()
         self._toc("update", start, device)
-
-    @torch.inference_mode()
-    def segment(
-        self, frames: Iterable[torch.Tensor], masks: dict[int, torch.Tensor]
-    ) -> Iterator[torch.Tensor]:
-        """Segment a video.
-
-        Args:
-            frames: (3, H, W) RGB frames in [0, 1] (float tensors, or uint8 scaled by 1/255).
-            masks: ``{frame index: (H, W) label map}``; frame 0 must be present; objects whose id first
-                appears in a later map start there (their given mask overrides the prediction).
-
-        Yields:
-            (H, W) int64 label maps, one per frame.
-        """
-        if 0 not in masks:
-            raise InputError("the first frame has no mask")
-        self.reset()
-        for t, frame in enumerate(frames):
-            image = frame.float() / 255 if frame.dtype == torch.uint8 else frame
-            given = masks.get(t)
-            if given is not None and given.shape != image.shape[-2:]:
-                raise InputError(f"mask of frame {t} is {tuple(given.shape)}, the frame {tuple(image.shape[-2:])}")
-            self.frame = t
-            new_ids = [] if given is None else [i for i in given.unique().tolist() if i not in (0, 255)
-                                                 and i not in self.ids]
-            if t == 0 and not new_ids:
-                raise InputError("the first-frame mask is empty: it labels no object")
-            if self.ids:
-                labels, probs_soft, z = self.step(image)
-                if new_ids:
-                    new = torch.isin(given, torch.tensor(new_ids, device=given.device))
-                    labels = torch.where(new, given.to(labels.dtype), labels)
-                    probs_soft = probs_soft * (~new).to(probs_soft.dtype)
-                self.update(probs_soft, z)
-            else:
-                labels = torch.where(torch.isin(given, torch.tensor(new_ids)), given, 0).long()
-            if new_ids:
-                self.add_objects(image, given.to(image.device), new_ids)
-            yield labels
 
 
 class FRTMTracker(nn.Module, FRTMLoop):

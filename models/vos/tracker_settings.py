@@ -3,11 +3,10 @@ onnxruntime tracker and the ONNX export's settings file."""
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 from core.errors import InputError
+from core.settings import SettingsMixin
 from models.vos.target_features import check_feature_norm
 
 OPTIMIZERS = ("gauss_newton", "steepest_descent")
@@ -15,7 +14,7 @@ OPTIMIZER_DTYPES = ("float32", "float64")
 
 
 @dataclass(frozen=True)
-class FRTMSettings:
+class FRTMSettings(SettingsMixin):
     """How the FRTM tracker segments a video (defaults: the paper's inference settings).
 
     Attributes:
@@ -81,20 +80,3 @@ class FRTMSettings:
         if not self.init_schedule or not self.update_schedule or min(self.init_schedule + self.update_schedule) < 1:
             raise InputError("tracker settings init_schedule and update_schedule must be non-empty lists of "
                              f"positive iteration counts, got {self.init_schedule} and {self.update_schedule}")
-
-    @classmethod
-    def from_dict(cls, values: Mapping[str, object]) -> FRTMSettings:
-        """Settings from a mapping (a config's ``tracker``, a settings file); an unknown key is an ``InputError``."""
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - names)
-        if unknown:
-            raise InputError(f"unknown tracker settings {unknown}; known: {', '.join(sorted(names))}")
-        return cls(**values)
-
-    def replace(self, **changes: object) -> FRTMSettings:
-        """A copy with ``changes`` applied (checked like ``from_dict``)."""
-        return FRTMSettings.from_dict({**self.to_dict(), **changes})
-
-    def to_dict(self) -> dict[str, object]:
-        """JSON-ready mapping (tuples become lists)."""
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}

@@ -1,0 +1,37 @@
+"""Frozen dataclasses of settings that read and write plain mappings (config sections, JSON settings files)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import TypeVar
+
+from core.errors import InputError
+
+S = TypeVar("S", bound="SettingsMixin")
+
+
+class SettingsMixin:
+    """``from_dict`` / ``replace`` / ``to_dict`` for a frozen dataclass whose ``__post_init__`` checks its values.
+
+    ``KIND`` names the settings in the error for an unknown key (``unknown tracker settings [...]``).
+    """
+
+    KIND = "tracker"
+
+    @classmethod
+    def from_dict(cls: type[S], values: Mapping[str, object]) -> S:
+        """Settings from a mapping; an unknown key is an ``InputError`` that lists the known ones."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown:
+            raise InputError(f"unknown {cls.KIND} settings {unknown}; known: {', '.join(sorted(names))}")
+        return cls(**values)
+
+    def replace(self: S, **changes: object) -> S:
+        """A copy with ``changes`` applied (checked like ``from_dict``)."""
+        return type(self).from_dict({**self.to_dict(), **changes})
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-ready mapping (tuples become lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}

@@ -1,0 +1,69 @@
+"""The label encoder of LWL and DAVOS (thesis ch. 6.1, fig. 6.1; paper E): a small residual network that turns
+a (soft) label, [target] for LWL or [target, distractor] for DAVOS, into the K-channel mask encoding E(y) the
+target model learns to predict and the spatial weights W(y) of its residual, at the features' stride.
+
+Layout (LWL ``ResidualDS16SW``, without batch norm): 3x3 convolution with stride 2 and ReLU, 3x3 max pool with
+stride 2, residual blocks down to the stride, then E(y) = ReLU(3x3 conv) and W(y) = 3x3 conv whose weights
+start at 0 and bias at 1 (every residual weighs 1 before training).
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from core.errors import InputError
+
+
+class ResidualBlock(nn.Module):
+    """x -> ReLU(conv3(ReLU(conv3(x))) + shortcut(x)); the shortcut is a strided 1x1 convolution when the
+    stride or the width changes."""
+
+    def __init__(self, in_channels: int, channels: int, stride: int = 1) -> None:
+        super().__init__()
+        self.conv1 = nn.Conv2d(in_channels, channels, 3, stride, 1)
+        self.conv2 = nn.Conv2d(channels, channels, 3, 1, 1)
+        same = stride == 1 and in_channels == channels
+        self.shortcut = nn.Identity() if same else nn.Conv2d(in_channels, channels, 1, stride)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return F.relu(self.conv2(F.relu(self.conv1(x))) + self.shortcut(x))
+
+
+class LabelEncoder(nn.Module):
+    """Mask encoding E(y) and spatial weights W(y) of labels.
+
+    Args:
+        in_channels: label channels L (1: target; 2: target and distractor).
+        out_channels: K (LWL 16 at stride 16; DAVOS 32 at stride 8).
+        stride: 8 or 16, the target-model features' stride.
+        dims: widths of the stem and the residual stages.
+
+    Shapes:
+        labels (N, L, H, W) in [0, 1], size (h, w) of the features -> E (N, K, h, w), W (N, K, h, w).
+    """
+
+    def __init__(self, in_channels: int = 2, out_channels: int = 16, stride: int = 8,
+                 dims: tuple[int, int, int] | list[int] = (16, 32, 64)) -> None:
+        super().__init__()
+        if stride not in (8, 16):
+            raise InputError(f"label encoder stride must be 8 or 16, got {stride}")
+        if in_channels < 1 or out_channels < 1:
+            raise InputError(f"label encoder channels must be >= 1, got {in_channels} -> {out_channels}")
+        d0, d1, d2 = dims
+        self.in_channels = in_channels
+        self.stem = nn.Sequential(nn.Conv2d(in_channels, d0, 3, 2, 1), nn.ReLU(inplace=True), nn.MaxPool2d(3, 2, 1))
+        self.blocks = nn.Sequential(ResidualBlock(d0, d1, 2), ResidualBlock(d1, d2, 2 if stride == 16 else 1))
+        self.encoding = nn.Conv2d(d2, out_channels, 3, padding=1)
+        self.weighting = nn.Conv2d(d2, out_channels, 3, padding=1)
+        nn.init.zeros_(self.weighting.weight)
+        nn.init.ones_(self.weighting.bias)
+
+    def forward(self, labels: torch.Tensor, size: tuple[int, int]) -> tuple[torch.Tensor, torch.Tensor]:
+        if labels.ndim != 4 or labels.shape[1] != self.in_channels:
+            raise InputError(f"labels must be (N, {self.in_channels}, H, W), got {tuple(labels.shape)}")
+        h = self.blocks(self.stem(labels))
+        if h.shape[-2:] != tuple(size):  # backbones round odd sizes differently
+            h = F.interpolate(h, size=size, mode="bilinear", align_corners=False)
+        return F.relu(self.encoding(h)), self.weighting(h)
