@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     import torch
 
-    from cli.report import print_report
+    from core.command import print_report
     from core.cylinder import tangent_to_row
     from core.files import write_npz
     from data.horizon.datamodule import read_full_panorama

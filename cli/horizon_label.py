@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     import torch
 
-    from cli.report import print_report
+    from core.command import print_report
     from core.raycast import VirtualHorizon
     from data.horizon.classical import ClassicalHorizon
     from data.horizon.datamodule import read_full_panorama

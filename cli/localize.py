@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
 
     from data.horizon.bank_io import FilterBank
     from data.horizon.datamodule import read_full_panorama
-    from data.horizon.track_io import image_paths, read_compass_csv, read_profiles, write_track
+    from core.track_io import image_paths, read_compass_csv, read_profiles, write_track
     from models.builders import horizon_matcher
     from models.horizon.localizer import HorizonLocalizer
 

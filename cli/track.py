@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
 
     from core.files import writable_folder, write_npz
     from core.threads import cpu_threads
-    from data.flow.frames import read_frames, read_points
+    from core.frames import read_frames, read_points
     from models.tracking.overlay import write_overlay_video
     from models.tracking.run import track_points
 

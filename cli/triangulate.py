@@ -26,7 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import torch
 
-    from cli.report import print_report
+    from core.command import print_report
     from data.sfm.bal import read_bal
     from data.sfm.bundler import read_bundler
     from data.sfm.ply import write_ply

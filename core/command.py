@@ -1,9 +1,11 @@
-"""What every command of the project shares: an argument parser whose errors are one line and exit code 2, and
-``run_command``, which turns an input error raised anywhere below into that same one line."""
+"""What every command of the project shares: an argument parser whose errors are one line and exit code 2,
+``run_command``, which turns an input error raised anywhere below into that same one line, and ``print_report``.
+Torch-free, so the deployment runtime's commands share it."""
 
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import re
 import sys
@@ -33,6 +35,17 @@ def run_command(prog: str, run: Callable[[], int | None]) -> int:
         message = " ".join(str(err).split())  # one line, whatever the message held
         sys.stderr.write(f"{prog}: error: {message}\n")
         return EXIT_BAD_INPUT
+
+
+def print_report(report: dict, as_json: bool) -> None:
+    """Print a command's flat ``report`` as one JSON object (``as_json``), else as right-aligned ``key: value``
+    lines."""
+    if as_json:
+        print(json.dumps(report))
+        return
+    width = max(map(len, report))
+    for key, value in report.items():
+        print(f"{key:>{width}}: {value:.6g}" if isinstance(value, float) else f"{key:>{width}}: {value}")
 
 
 #: Known third-party warnings that say nothing about the user's run (messages as regular expressions).

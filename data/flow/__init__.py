@@ -4,7 +4,7 @@ flow (thesis 3.4) and seeded synthetic sequences with chained ground truth, plai
 
 from data.flow.flo import read_flo, write_flo
 from data.flow.ground_truth import divergent_flow_mask, sample_bilinear, tracks_from_flow
-from data.flow.sintel import SintelPair, read_frame_gray, read_sintel_pair, read_sintel_sequence
+from data.flow.sintel import SintelPair, read_sintel_pair, read_sintel_sequence
 from data.flow.stress import STRESS_CONDITIONS, stress_sequence
 from data.flow.synthetic import SyntheticSequence, synthetic_sequence
 
@@ -14,7 +14,6 @@ __all__ = [
     "SyntheticSequence",
     "divergent_flow_mask",
     "read_flo",
-    "read_frame_gray",
     "read_sintel_pair",
     "read_sintel_sequence",
     "sample_bilinear",

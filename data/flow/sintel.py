@@ -12,18 +12,8 @@ import cv2
 import numpy as np
 
 from core.errors import InputError
+from core.frames import read_frame_gray
 from data.flow.flo import read_flo
-
-
-def read_frame_gray(path: str | Path) -> np.ndarray:
-    """Read an image file as a ``(H, W)`` float32 gray frame in [0, 255]."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"frame not found: {path}")
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if image is None:
-        raise InputError(f"{path}: not a readable image")
-    return image.astype(np.float32)
 
 
 def _read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:

@@ -1,6 +1,7 @@
 """On-disk storage of a horizon filter bank: chunked, memory-mappable, tied to its DEM.
 
-A bank is a directory::
+The directory layout and its reader are ``core.bank_reader`` (torch-free, shared with the deployment runtime); here
+the writer and ``FilterBank``, the reader with tensor blocks and the DEM check. A bank is a directory::
 
     bank.json                 settings, grid, DEM fingerprint, chunk list, ``complete`` flag
     chunks/filters_NNNNN.npy  (L_i, 2K) float16 (or float32): H* of L_i locations, (re, im) per frequency
@@ -17,27 +18,15 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from core.bank_reader import BANK_FORMAT, BANK_VERSION, STORAGE_DTYPES, BankReader
 from core.errors import InputError
 from core.files import atomic_path, writable_folder, write_text
 from data.world.dem import Dem, dem_fingerprint
-
-BANK_FORMAT = "dcfvision-horizon-filter-bank"
-BANK_VERSION = 1
-STORAGE_DTYPES = ("float16", "float32")
-
-
-@dataclass
-class BankChunk:
-    """One chunk: ``filters`` (L, 2K) storage-dtype array (memory-mapped) and ``cells`` (L, 2) int32."""
-
-    filters: np.ndarray
-    cells: np.ndarray
 
 
 class BankWriter:
@@ -109,99 +98,21 @@ class BankWriter:
         return self.path
 
 
-class FilterBank:
-    """A stored bank opened for matching (see the module docstring for the layout).
-
-    Attributes:
-        meta: the parsed ``bank.json``; ``settings``, ``grid`` and ``dem`` entries describe the bank.
-    """
-
-    def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
-        meta_path = self.path / "bank.json"
-        if not meta_path.is_file():
-            raise InputError(f"filter bank not found: {meta_path} (build one with `infer.py build-bank`)")
-        try:
-            meta = json.loads(meta_path.read_text())
-        except json.JSONDecodeError as err:
-            raise InputError(f"filter bank {meta_path} is not valid JSON: {err}") from err
-        if meta.get("format") != BANK_FORMAT or meta.get("version") != BANK_VERSION:
-            raise InputError(f"{meta_path} is not a version {BANK_VERSION} {BANK_FORMAT}")
-        if not meta.get("complete"):
-            raise InputError(f"filter bank {self.path} is incomplete (its build was interrupted; run build-bank "
-                             "again with the same arguments to resume)")
-        self.meta = meta
-        self._chunks: list[BankChunk] = []
-        for chunk in meta["chunks"]:
-            files = [self.path / "chunks" / f"{kind}_{chunk['index']:05d}.npy" for kind in ("filters", "cells")]
-            try:
-                filters, cells = (np.load(f, mmap_mode="r") for f in files)
-            except (OSError, ValueError) as err:
-                message = f"filter bank {self.path}: chunk {chunk['index']} is missing or corrupt: {err}"
-                raise InputError(message) from err
-            if filters.shape != (chunk["count"], 2 * self.half_spectrum) or cells.shape != (chunk["count"], 2):
-                raise InputError(f"filter bank {self.path}: chunk {chunk['index']} has shapes {filters.shape}, "
-                                 f"{cells.shape}, expected ({chunk['count']}, {2 * self.half_spectrum}), "
-                                 f"({chunk['count']}, 2)")
-            self._chunks.append(BankChunk(filters, cells))
-
-    @property
-    def settings(self) -> dict:
-        return self.meta["settings"]
-
-    @property
-    def bins(self) -> int:
-        return int(self.settings["bins"])
-
-    @property
-    def half_spectrum(self) -> int:
-        return int(self.settings["half_spectrum"])
-
-    @property
-    def grid(self) -> dict:
-        """``x0, y0, spacing, rows, cols`` of the location grid."""
-        return self.meta["grid"]
-
-    def __len__(self) -> int:
-        return sum(len(c.cells) for c in self._chunks)
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes of the stored filters and cells."""
-        return sum(c.filters.nbytes + c.cells.nbytes for c in self._chunks)
-
-    def cells(self) -> np.ndarray:
-        """(L, 2) int grid (row, col) of all locations, in bank order."""
-        if not self._chunks:
-            return np.zeros((0, 2), dtype=np.int32)
-        return np.concatenate([np.asarray(c.cells) for c in self._chunks])
-
-    def locations(self) -> np.ndarray:
-        """(L, 2) map coordinates (x, y) of all locations, metres."""
-        cells = self.cells().astype(np.float64)
-        g = self.grid
-        return np.stack([g["x0"] + cells[:, 1] * g["spacing"], g["y0"] - cells[:, 0] * g["spacing"]], -1)
+class FilterBank(BankReader):
+    """A stored bank opened for matching (``core.bank_reader.BankReader``) with its blocks as tensors."""
 
     def chunks(self, size: int = 2**16, dtype: torch.dtype = torch.float32, device=None) -> Iterator[torch.Tensor]:
         """Filters (L_c, 2K) of up to ``size`` locations at a time, in bank order, as tensors of ``dtype``."""
-        for chunk in self._chunks:
-            for start in range(0, len(chunk.cells), size):
-                block = np.array(chunk.filters[start : start + size])  # copy: memory maps are read-only
-                yield torch.from_numpy(block).to(device=device, dtype=dtype)
+        for _, _, filters in self.arrays(size):
+            yield torch.from_numpy(filters).to(device=device, dtype=dtype)
 
     def blocks(
         self, size: int = 8192, dtype: torch.dtype = torch.float32, device=None, rows: tuple[int, int] | None = None
     ) -> Iterator[tuple[int, np.ndarray, torch.Tensor]]:
         """``(offset, cells (L_c, 2), filters (L_c, 2K))`` blocks in bank order; with ``rows = (lo, hi)`` only the
         blocks holding a grid row in ``[lo, hi]`` are read (a search window)."""
-        offset = 0
-        for chunk in self._chunks:
-            for start in range(0, len(chunk.cells), size):
-                cells = np.asarray(chunk.cells[start : start + size])
-                if rows is None or (cells[:, 0].max() >= rows[0] and cells[:, 0].min() <= rows[1]):
-                    block = np.array(chunk.filters[start : start + size])  # copy: memory maps are read-only
-                    yield offset + start, cells, torch.from_numpy(block).to(device=device, dtype=dtype)
-            offset += len(chunk.cells)
+        for offset, cells, filters in self.arrays(size, rows):
+            yield offset, cells, torch.from_numpy(filters).to(device=device, dtype=dtype)
 
     def check_dem(self, dem: Dem, name: str = "DEM") -> None:
         """Raise ``InputError`` unless the bank was built for ``dem`` (same flooded heights and geotransform)."""

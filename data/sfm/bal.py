@@ -8,7 +8,7 @@ import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 
 from data.sfm.reconstruction import Reconstruction
-from data.sfm.tokens import TokenReader
+from core.tokens import TokenReader
 
 
 def read_bal(path: str | Path) -> Reconstruction:

@@ -8,7 +8,7 @@ import torch
 
 from core.errors import InputError
 from data.sfm.reconstruction import Reconstruction
-from data.sfm.tokens import TokenReader
+from core.tokens import TokenReader
 
 
 def read_bundler(path: str | Path) -> Reconstruction:

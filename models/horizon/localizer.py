@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from core.bank_reader import subgrid_refine
 from core.cylinder import column_azimuths, interp_profile, warp_panorama
 from core.errors import InputError
 from data.horizon.bank_io import FilterBank
@@ -51,36 +52,6 @@ def resample_profile(profile: Tensor, bins: int) -> Tensor:
         return profile
     psi = column_azimuths(bins, profile.dtype, profile.device)[None].expand(profile.shape[0], bins)
     return interp_profile(profile, psi)
-
-
-def subgrid_refine(scores: np.ndarray, cells: np.ndarray, rows: int, cols: int, best: np.ndarray) -> np.ndarray:
-    """Fractional (row, col) of the best locations from a parabola through their grid neighbours' scores.
-
-    Args:
-        scores: (B, L) location scores (-inf = not a candidate); cells: (L, 2) grid (row, col) of the locations.
-        rows, cols: grid size; best: (B,) index of each query's best location.
-    Returns:
-        (B, 2) fractional cells (offsets within +-0.5; none along an axis missing a neighbour or not concave).
-    """
-    lookup = np.full((rows + 2, cols + 2), -1, dtype=np.int64)
-    lookup[cells[:, 0] + 1, cells[:, 1] + 1] = np.arange(len(cells))
-    centre = cells[best].astype(np.float64)
-    queries = np.arange(len(best))
-    s0 = scores[queries, best]
-    out = centre.copy()
-    for axis in (0, 1):
-        step = np.zeros(2, dtype=np.int64)
-        step[axis] = 1
-        lo = lookup[cells[best, 0] + 1 - step[0], cells[best, 1] + 1 - step[1]]
-        hi = lookup[cells[best, 0] + 1 + step[0], cells[best, 1] + 1 + step[1]]
-        s_lo, s_hi = scores[queries, lo.clip(0)], scores[queries, hi.clip(0)]
-        ok = (lo >= 0) & (hi >= 0) & np.isfinite(s_lo) & np.isfinite(s_hi)  # outside a search window: -inf
-        s_lo, s_hi = np.where(ok, s_lo, s0), np.where(ok, s_hi, s0)
-        curvature = s_lo - 2 * s0 + s_hi
-        concave = ok & (curvature < 0)
-        delta = np.where(concave, 0.5 * (s_lo - s_hi) / np.where(concave, curvature, -1.0), 0.0)
-        out[:, axis] += delta.clip(-0.5, 0.5)
-    return out
 
 
 def locate(

@@ -1,4 +1,5 @@
-"""Frame folders or glob patterns, and point lists, for the ``track`` command."""
+"""Gray frames, frame folders or glob patterns, and point lists (the ``track`` command and the runtime's
+point tracker). Torch-free."""
 
 from __future__ import annotations
 
@@ -6,12 +7,23 @@ import glob
 import warnings
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from core.errors import InputError
-from data.flow.sintel import read_frame_gray
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
+
+
+def read_frame_gray(path: str | Path) -> np.ndarray:
+    """Read an image file as a ``(H, W)`` float32 gray frame in [0, 255]."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"frame not found: {path}")
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise InputError(f"{path}: not a readable image")
+    return image.astype(np.float32)
 
 
 def frame_paths(spec: str | Path) -> list[Path]:
