@@ -19,6 +19,8 @@ device by the wall clock after synchronisation. The JSON names the clock. Every 
 first two frames (warm-up; its wall time from a cold start, tracker construction included, is ``first_call_s``),
 then ``--repeats`` times (default 3) with the methods taking turns; the best time counts. ``--compile`` adds
 ``ccot_compiled``: ``ccot`` with its per-frame step through ``torch.compile`` (compiled during the warm-up).
+``--methods ... ccot_ort`` adds the deployment runtime's tracker (``runtime.tracking``: the exported ``ccot`` graphs
+in onnxruntime with ``--threads`` threads) on ``--bundle DIR`` or a bundle exported into a temporary folder.
 
     python -m bench.point_tracking --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
         --plot docs/figures/point_tracking.png
@@ -30,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,7 +47,9 @@ from models.tracking.klt import klt_track
 
 METHODS = ("ccot", "ccot_ff", "mosse", "klt")
 COMPILED = "ccot_compiled"  # ccot with its step through torch.compile (--compile)
+ORT = "ccot_ort"  # the runtime's tracker on a ccot bundle (onnxruntime)
 _TRACKERS: dict[tuple[str, str], PointTracker] = {}
+_ORT_TRACKERS: dict[tuple[str | None, int], object] = {}
 THRESHOLDS = (1, 2, 3)
 
 
@@ -135,6 +140,25 @@ def run_dcf(method: str, frames: np.ndarray, points: np.ndarray, device: str = "
     return tracks[-1].double().cpu().numpy(), lost[-1].cpu().numpy(), timer() - start
 
 
+def run_ort(frames: np.ndarray, points: np.ndarray, bundle: str | Path | None = None, threads: int = 1):
+    """The runtime's tracker (``runtime.tracking.OnnxPointTracker``) on ``bundle`` (default: a ccot bundle exported
+    into a temporary folder once); returns last positions, lost flags and CPU seconds spent tracking."""
+    from runtime.tracking import OnnxPointTracker
+
+    key = (None if bundle is None else str(bundle), threads)
+    if key not in _ORT_TRACKERS:
+        if bundle is None:
+            from export.tracking_onnx import export_bundle
+
+            bundle = export_bundle(Path(tempfile.mkdtemp(prefix="tracking_bundle_")) / "bundle", "ccot")
+        _ORT_TRACKERS[key] = OnnxPointTracker(bundle, threads=threads)
+    tracker = _ORT_TRACKERS[key]
+    images = [f.astype(np.float32) for f in frames]
+    start = time.process_time()
+    tracks, lost, _ = tracker.track(images, points)
+    return tracks[-1].astype(np.float64), lost[-1], time.process_time() - start
+
+
 def metrics(pred: np.ndarray, lost: np.ndarray, data: Dataset, seconds: float) -> dict:
     """Statistics over the points with valid ground truth at the last frame."""
     epe = np.linalg.norm(pred[data.valid] - data.truth[data.valid], axis=1)
@@ -155,15 +179,20 @@ def metrics(pred: np.ndarray, lost: np.ndarray, data: Dataset, seconds: float) -
     }
 
 
-def run_method(method: str, frames: np.ndarray, points: np.ndarray, device: str = "cpu"):
-    """One run of ``method`` (a DCF variant, ``ccot_compiled`` or ``klt``): last positions, lost, seconds."""
+def run_method(method: str, frames: np.ndarray, points: np.ndarray, device: str = "cpu",
+               bundle: str | Path | None = None):
+    """One run of ``method`` (a DCF variant, ``ccot_compiled``, ``ccot_ort`` on ``bundle`` or ``klt``): last
+    positions, lost, seconds."""
     if method == "klt":
         return run_klt(frames, points, device)
+    if method == ORT:
+        return run_ort(frames, points, bundle, torch.get_num_threads())
     compiled = method == COMPILED
     return run_dcf("ccot" if compiled else method, frames, points, device, compile=compiled)
 
 
-def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu", repeats: int = 3) -> dict:
+def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu", repeats: int = 3,
+             bundle: str | Path | None = None) -> dict:
     """Run every method on every dataset; one result dict per method (with per-point EPEs under ``epe``).
 
     Each method first runs once on the first two frames (warm-up: one-time start-up costs; its wall time,
@@ -175,13 +204,13 @@ def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu",
         first_call = {}
         for method in methods:
             start = time.perf_counter()
-            run_method(method, data.frames[:2], data.points, device)
+            run_method(method, data.frames[:2], data.points, device, bundle)
             first_call[method] = time.perf_counter() - start
         seconds = {method: [] for method in methods}
         last = {}
         for _ in range(repeats):
             for method in methods:
-                *last[method], elapsed = run_method(method, data.frames, data.points, device)
+                *last[method], elapsed = run_method(method, data.frames, data.points, device, bundle)
                 seconds[method].append(elapsed)
         results = {method: metrics(*last[method], data, min(seconds[method])) for method in methods}
         for method, m in results.items():
@@ -347,7 +376,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
     parser.add_argument("--spacing", type=int, default=3,
                         help="least distance between detected points in px")
-    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=(*METHODS, ORT))
+    parser.add_argument("--bundle", metavar="DIR",
+                        help=f"ccot tracking bundle for {ORT} (default: one exported into a temporary folder)")
     parser.add_argument(
         "--compile",
         action="store_true",
@@ -383,7 +414,7 @@ def main(argv: list[str] | None = None) -> int:
                 condition, args.frames, args.points, args.seed, args.spacing
             )
         methods = [*args.methods, *([COMPILED] if args.compile else [])]
-        result = evaluate(datasets, methods, args.device, args.repeats)
+        result = evaluate(datasets, methods, args.device, args.repeats, args.bundle)
     if args.plot:
         plot(result, args.plot)
     for ds in result.values():

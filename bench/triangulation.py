@@ -1,10 +1,13 @@
 """Triangulation benchmark: every method side by side on the same synthetic cube (thesis 2.5, figure 2.2).
 
-    python -m bench.triangulation [--points N] [--noise SIGMA] [--device cpu|cuda] [--json] [--plot FILE.png]
+    python -m bench.triangulation [--points N] [--noise SIGMA] [--device cpu|cuda] [--methods ...]
+                                  [--bundle DIR] [--json] [--plot FILE.png]
 
 Points in the cube [-1, 1]^3, three cameras on a radius-5 circle at -0.3/0/+0.3 rad (f = 1000 px), N(0, sigma)
-pixel noise. Two-view methods use the first two views. Prints one JSON object
-``{"config": {...}, "methods": {NAME: {views, points, points_per_s, err3d_median, err3d_mean, err3d_p95,
+pixel noise. Two-view methods use the first two views. ``ort_dogleg`` is the deployment runtime's dogleg
+(``runtime.triangulation``: the exported graph in onnxruntime, float32, cameras shared, ``--threads`` threads) on
+``--bundle DIR`` or a bundle exported into a temporary folder; it is not among the default methods. Prints one JSON
+object ``{"config": {...}, "methods": {NAME: {views, points, points_per_s, err3d_median, err3d_mean, err3d_p95,
 reproj_rms, valid_frac}}}``; ``reproj_rms`` is the RMS over observations of the reprojection distance (px).
 Speeds are best-of-``--repeats`` wall clock including everything from input arrays to 3D points.
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -35,10 +39,10 @@ from models.geometry import (
 from models.geometry.evaluation import evaluate_reconstruction
 
 ALL_METHODS = (
-    "dogleg", "dogleg_compiled", "midpoint3", "midpoint2", "polynomial", "kornia_dlt", "opencv_dlt", "opencv_optimal",
-    "pycolmap",
+    "dogleg", "dogleg_compiled", "ort_dogleg", "midpoint3", "midpoint2", "polynomial", "kornia_dlt", "opencv_dlt",
+    "opencv_optimal", "pycolmap",
 )
-DEFAULT_METHODS = tuple(m for m in ALL_METHODS if m != "dogleg_compiled")
+DEFAULT_METHODS = tuple(m for m in ALL_METHODS if m not in ("dogleg_compiled", "ort_dogleg"))
 
 
 def _best_time(fn: Callable[[], np.ndarray | torch.Tensor], repeats: int, sync: Callable[[], None]) -> tuple:
@@ -61,8 +65,23 @@ def _compiled_dogleg(P: torch.Tensor, x: torch.Tensor) -> tuple[Callable[[], tor
     return (lambda: solver(P, x, chunk_size=262_144).points), time.perf_counter() - start
 
 
+def _ort_dogleg(P: torch.Tensor, x: torch.Tensor, bundle: Path | None, threads: int) -> Callable[[], np.ndarray]:
+    """The runtime's dogleg on a bundle (exported into a temporary folder without ``bundle``) with ``threads``
+    onnxruntime threads."""
+    from runtime.triangulation import Triangulator
+
+    if bundle is None:
+        from export.triangulation import export_bundle
+
+        bundle = export_bundle(Path(tempfile.mkdtemp(prefix="tri_bundle_")) / "bundle", views=x.shape[1])
+    solver = Triangulator(bundle, threads=threads)
+    cameras, observations = P.float().cpu().numpy(), x.float().cpu().numpy()
+    return lambda: solver(cameras, observations).points
+
+
 def _method_table(
-    scene: SyntheticScene, device: str, dtype: torch.dtype, pycolmap_points: int, methods: tuple[str, ...]
+    scene: SyntheticScene, device: str, dtype: torch.dtype, pycolmap_points: int, methods: tuple[str, ...],
+    bundle: Path | None = None, threads: int = 1,
 ) -> tuple[dict, dict]:
     """name -> (views, number of points, callable returning (B, 3) points), and notes for the config."""
     P = scene.cameras.to(device, dtype)
@@ -100,6 +119,8 @@ def _method_table(
     if "dogleg_compiled" in methods:
         solver, notes["compile_s"] = _compiled_dogleg(P, x)
         table["dogleg_compiled"] = (3, n, solver)
+    if "ort_dogleg" in methods:
+        table["ort_dogleg"] = (3, n, _ort_dogleg(P, x, bundle, threads))
     try:
         import pycolmap
     except ImportError:
@@ -131,10 +152,13 @@ def run(
     repeats: int = 3,
     pycolmap_points: int = 10_000,
     methods: tuple[str, ...] = DEFAULT_METHODS,
+    bundle: Path | None = None,
 ) -> tuple[dict, dict[str, np.ndarray]]:
-    """Run the benchmark; returns the JSON-ready report and per-method arrays of 3D and reprojection errors."""
+    """Run the benchmark; returns the JSON-ready report and per-method arrays of 3D and reprojection errors
+    (``bundle``: the triangulation bundle of ``ort_dogleg``, see the module docstring)."""
     scene = synthetic_cube_scene(points, num_views=3, noise_px=noise, seed=seed)
-    table, notes = _method_table(scene, device, getattr(torch, dtype), pycolmap_points, methods)
+    table, notes = _method_table(scene, device, getattr(torch, dtype), pycolmap_points, methods, bundle,
+                                 torch.get_num_threads())
     sync = torch.cuda.synchronize if device.startswith("cuda") else (lambda: None)
     report: dict = {"config": {"points": points, "noise_px": noise, "device": device, "dtype": dtype,
                                "torch_threads": torch.get_num_threads(), "repeats": repeats, **notes}, "methods": {}}
@@ -245,6 +269,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--pycolmap-points", type=int, default=10_000, help="pycolmap runs per point in Python")
     parser.add_argument("--methods", nargs="+", choices=ALL_METHODS, default=list(DEFAULT_METHODS))
     parser.add_argument("--compile", action="store_true", help="also time torch.compile'd dogleg (dogleg_compiled)")
+    parser.add_argument("--bundle", type=Path, metavar="DIR",
+                        help="triangulation bundle for ort_dogleg (default: one exported into a temporary folder)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1,
                         help="CPU threads for torch and OpenCV (default 1: OpenCV's DLT is single-threaded)")
@@ -258,7 +284,7 @@ def main(argv: list[str] | None = None) -> None:
     set_cpu_threads(args.threads)
     methods = tuple(args.methods) + (("dogleg_compiled",) if args.compile else ())
     report, errors = run(args.points, args.noise, args.device, args.dtype, args.seed, args.repeats,
-                         args.pycolmap_points, methods)
+                         args.pycolmap_points, methods, args.bundle)
     if args.plot:
         plot(errors, args.plot, f"{args.points} points, sigma = {args.noise} px")
     print(json.dumps(report, indent=None) if args.json else format_table(report))

@@ -1,7 +1,8 @@
 """FRTM video object segmentation benchmark: the full method against its baselines, with DAVIS J&F.
 
     python -m bench.vos [--ckpt CKPT] [--davis ROOT --split NAME --resolution 240p] [--synthetic]
-                        [--speed [--speed-config YAML ...]] [--max-frames N] [--json] [--plot FILE.png]
+                        [--speed [--speed-config YAML ...]] [--onnx BUNDLE ...] [--max-frames N] [--json]
+                        [--plot FILE.png]
 
 Methods: ``frtm`` (target model + decoder), ``target_model_only`` (the upsampled target-model score
 thresholded at 0.5, same memory updates) and ``first_frame_copy`` (the first mask repeated). Each gets ``jf``,
@@ -14,6 +15,9 @@ checkpoint's system and, side by side in the same run, for the models of any ``-
 Without ``--ckpt`` the system is built untrained from ``--backbone``/``--weights``/``--feature-layer``/
 ``--feature-norm`` and the paper's tracker settings: with ``--weights imagenet`` the ``target_model_only``
 row measures the pretrained features alone (the decoder is random, so the ``frtm`` row means nothing then).
+``--onnx BUNDLE`` adds the deployment runtime (``runtime.vos``: the bundle's graphs in onnxruntime with
+``--threads`` threads, the host loop in numpy) as method ``onnx:<bundle folder name>``, in the J&F rows and, with
+``--speed``, in the speed table of the same run (a float32 and an int8 bundle side by side, for instance).
 Prints one JSON object with ``--json``, else a table.
 """
 
@@ -23,6 +27,7 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import torch
@@ -40,8 +45,18 @@ from models.vos.tracker import COMPONENTS
 METHODS = ("frtm", "target_model_only", "first_frame_copy")
 
 
-def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, torch.Tensor, torch.Tensor]]) -> dict:
-    """Segment ``videos`` (name, frames uint8, labels) with ``method``; J&F statistics, FPS and ms/frame."""
+def onnx_tracker(bundle: str) -> Callable[[], object]:
+    """A factory of the runtime's tracker on ``bundle`` (onnxruntime with torch's thread count)."""
+    from runtime.vos import OnnxFRTMTracker
+
+    return lambda: OnnxFRTMTracker(bundle, threads=torch.get_num_threads())
+
+
+def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, torch.Tensor, torch.Tensor]],
+               bundles: dict[str, str] | None = None) -> dict:
+    """Segment ``videos`` (name, frames uint8, labels) with ``method`` (one of ``METHODS`` or a name of
+    ``bundles``, ``onnx:<folder>`` -> bundle folder); J&F statistics, FPS and ms/frame."""
+    bundles = bundles or {}
     per_seq, frames_total, seconds = {}, 0, 0.0
     timings = dict.fromkeys(COMPONENTS, 0.0)
     for name, frames, labels in videos:
@@ -50,10 +65,11 @@ def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, tor
             pred = labels[:1].expand_as(labels).clone()
             pred[pred == 255] = 0
         else:
-            tracker = model.make_tracker(use_decoder=method == "frtm")
-            pred = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+            tracker = (onnx_tracker(bundles[method])() if method in bundles
+                       else model.make_tracker(use_decoder=method == "frtm"))
+            pred = torch.stack([torch.as_tensor(p) for p in tracker.segment(frames, {0: labels[0]})])
             for k, v in tracker.timings.items():
-                timings[k] += v
+                timings[k] = timings.get(k, 0.0) + v
         seconds += time.perf_counter() - start
         frames_total += frames.shape[0]
         per_seq[name] = evaluate_sequence(pred, labels)
@@ -69,8 +85,8 @@ def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, tor
 SPEED_SIZES = {"240p": (240, 427), "480p": (480, 854)}
 
 
-def _speed_once(model: FRTMSegmentation, frames: torch.Tensor, labels: torch.Tensor) -> dict:
-    tracker = model.make_tracker()
+def _speed_once(make_tracker: Callable[[], object], frames: torch.Tensor, labels: torch.Tensor) -> dict:
+    tracker = make_tracker()
     wall, cpu = time.perf_counter(), time.process_time()
     list(tracker.segment(frames, {0: labels[0]}))
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
@@ -80,20 +96,21 @@ def _speed_once(model: FRTMSegmentation, frames: torch.Tensor, labels: torch.Ten
     return {"fps": n / wall, "cpu_s_per_frame": cpu / n, "fps_after_init": 1000 / steady, "ms_per_frame": per_frame}
 
 
-def speed(models: dict[str, FRTMSegmentation], n_frames: int = 24, repeats: int = 2) -> dict:
+def speed(models: dict[str, Callable[[], object]], n_frames: int = 24, repeats: int = 2) -> dict:
     """Tracker FPS, process CPU seconds and ms/frame per component at 240p (240x427) and 480p (480x854) on a
     synthetic video of ``n_frames`` (first-frame init included; ``fps_after_init`` leaves it out), for each of
-    ``models``. The models take turns, ``repeats`` runs each after one warm-up, and the fastest run counts."""
+    ``models`` (name -> tracker factory, e.g. ``FRTMSegmentation.make_tracker``). The models take turns,
+    ``repeats`` runs each after one warm-up, and the fastest run counts."""
     from data.vos.synthetic import synthetic_video
 
     out: dict[str, dict] = {name: {} for name in models}
     for res, (h, w) in SPEED_SIZES.items():
         frames, labels = synthetic_video(3, n_frames=n_frames, height=h, width=w)
-        for model in models.values():  # warm-up (allocations, thread pools)
-            list(model.make_tracker().segment(frames[:3], {0: labels[0]}))
+        for make_tracker in models.values():  # warm-up (allocations, thread pools)
+            list(make_tracker().segment(frames[:3], {0: labels[0]}))
         for _ in range(repeats):
-            for name, model in models.items():
-                run = _speed_once(model, frames, labels)
+            for name, make_tracker in models.items():
+                run = _speed_once(make_tracker, frames, labels)
                 if res not in out[name] or run["fps"] > out[name][res]["fps"]:
                     out[name][res] = run
     return out
@@ -147,12 +164,15 @@ def run(args: argparse.Namespace) -> dict:
                     "feature_layer": h.feature_layer, "feature_norm": h.feature_norm, "feature_scale": h.feature_scale,
                     "tracker": h.tracker,
                     "threads": torch.get_num_threads(), "methods": {}}
+    bundles = {f"onnx:{Path(b).name}": b for b in args.onnx or []}
     if args.davis or args.synthetic or not args.speed:
         result["dataset"], videos = load_videos(args)
-        for method in methods:
-            result["methods"][method] = run_method(model, method, videos)
+        for method in [*methods, *bundles]:
+            result["methods"][method] = run_method(model, method, videos, bundles)
     if args.speed:
-        models = {"model": model, **{Path(c).stem: frtm_system(config=c) for c in args.speed_config or []}}
+        models = {"model": model.make_tracker,
+                  **{Path(c).stem: frtm_system(config=c).make_tracker for c in args.speed_config or []},
+                  **{name: onnx_tracker(b) for name, b in bundles.items()}}
         result["speed"] = speed(models, args.speed_frames)
     return result
 
@@ -223,6 +243,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--speed-config", nargs="+", action="extend", metavar="YAML",
                    help="with --speed: also time the (untrained) models of these train.py configs, in the same run")
     p.add_argument("--speed-frames", type=int, default=24, help="frames of the --speed video (default 24)")
+    p.add_argument("--onnx", nargs="+", action="extend", metavar="BUNDLE",
+                   help="also run these VOS bundles in the deployment runtime (methods onnx:<folder>)")
     p.add_argument("--threads", type=int, help="torch intra-op threads (1 is much faster on an oversubscribed CPU)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a J&F-vs-FPS PNG")

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from core.errors import InputError
+
 NAME = "horizon"
 HELP = ("Horizon networks on one panorama: HorizonFinder pitch/roll, levelling, HorizonSegmenter horizon and "
         "water profiles.")
@@ -13,26 +15,34 @@ HELP = ("Horizon networks on one panorama: HorizonFinder pitch/roll, levelling, 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--image", type=Path, required=True, help="tilted 360-degree panorama (column 0 = forward)")
-    p.add_argument("--finder", type=Path, required=True, help="HorizonFinder checkpoint (.ckpt) or ONNX graph")
-    p.add_argument("--segmenter", type=Path, required=True, help="HorizonSegmenter checkpoint or ONNX graph")
+    p.add_argument("--finder", type=Path, help="HorizonFinder checkpoint")
+    p.add_argument("--segmenter", type=Path, help="HorizonSegmenter checkpoint")
+    p.add_argument("--onnx", type=Path, metavar="DIR", help="instead of the checkpoints: a horizon bundle, run by the "
+                   "torch-free runtime (runtime.horizon)")
     p.add_argument("--input-width", type=int, default=512, metavar="PX",
-                   help="network input width (the panorama is resized; default 512)")
+                   help="network input width (the panorama is resized; default 512; a bundle has its own)")
     p.add_argument("--out", type=Path, metavar="FILE.npz", help="write pitch, roll and the per-column profiles")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-
-
-def model_source(path: Path) -> dict[str, Path]:
-    """``{"onnx": path}`` for an ``.onnx`` file, else ``{"ckpt": path}`` (the builders' keyword)."""
-    return {"onnx": path} if path.suffix.lower() == ".onnx" else {"ckpt": path}
 
 
 def run(args: argparse.Namespace) -> int:
     import math
 
+    from core.command import print_report
+
+    if args.onnx is not None:
+        from runtime.horizon import horizon_file
+
+        if args.finder or args.segmenter:
+            raise InputError("give --onnx BUNDLE or the checkpoints --finder and --segmenter, not both")
+        print_report(horizon_file(args.onnx, args.image, args.out), args.json)
+        return 0
+    if args.finder is None or args.segmenter is None:
+        raise InputError("give --finder CKPT and --segmenter CKPT (or --onnx BUNDLE)")
+
     import numpy as np
     import torch
 
-    from core.command import print_report
     from core.cylinder import tangent_to_row
     from core.files import write_npz
     from data.horizon.datamodule import read_full_panorama
@@ -40,8 +50,7 @@ def run(args: argparse.Namespace) -> int:
     from models.horizon.localizer import panorama_profiles
 
     image = read_full_panorama(args.image)
-    finder = horizon_finder(**model_source(args.finder))
-    segmenter = horizon_segmenter(**model_source(args.segmenter))
+    finder, segmenter = horizon_finder(ckpt=args.finder), horizon_segmenter(ckpt=args.segmenter)
     profiles, pitch, roll = panorama_profiles(image, finder, segmenter, args.input_width)
     horizon, water = profiles[0].numpy().astype(np.float64)
     height, width = image.shape[-2:]

@@ -22,7 +22,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--finder", type=Path, help="HorizonFinder checkpoint (default: newest demo training)")
     p.add_argument("--segmenter", type=Path, help="HorizonSegmenter checkpoint (default: newest demo training)")
     p.add_argument("--onnx", type=Path, metavar="DIR",
-                   help="use finder.onnx / segmenter.onnx (and matcher.onnx if present) from DIR instead")
+                   help="instead of the checkpoints and PyTorch: a horizon bundle (export.horizon_onnx), run by the "
+                   "torch-free runtime (runtime.localize)")
     p.add_argument("--input-width", type=int, default=512, metavar="PX", help="network input width (default 512)")
     p.add_argument("--dem", type=Path, help="check that the bank was built for this DEM")
     p.add_argument("--sea-level", type=float, default=0.0, metavar="M", help="sea level of --dem (m)")
@@ -33,15 +34,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _networks(args: argparse.Namespace) -> tuple:
-    """(finder, segmenter) from --onnx DIR, the given checkpoints, or the newest demo trainings."""
+    """(finder, segmenter) from the given checkpoints, or the newest demo trainings."""
     from models.builders import demo_horizon_checkpoint, horizon_finder, horizon_segmenter
 
-    if args.onnx:
-        return horizon_finder(onnx=args.onnx / "finder.onnx"), horizon_segmenter(onnx=args.onnx / "segmenter.onnx")
     finder = args.finder or demo_horizon_checkpoint("finder")
     segmenter = args.segmenter or demo_horizon_checkpoint("segmenter")
     if finder is None or segmenter is None:
-        raise InputError("no HorizonFinder/HorizonSegmenter checkpoint: pass --finder and --segmenter (or --onnx DIR)")
+        raise InputError("no HorizonFinder/HorizonSegmenter checkpoint: pass --finder and --segmenter "
+                         "(or --onnx BUNDLE)")
     return horizon_finder(ckpt=finder), horizon_segmenter(ckpt=segmenter)
 
 
@@ -51,10 +51,9 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     import torch
 
+    from core.track_io import image_paths, read_compass_csv, read_profiles, write_track
     from data.horizon.bank_io import FilterBank
     from data.horizon.datamodule import read_full_panorama
-    from core.track_io import image_paths, read_compass_csv, read_profiles, write_track
-    from models.builders import horizon_matcher
     from models.horizon.localizer import HorizonLocalizer
 
     bank = FilterBank(args.bank)
@@ -62,11 +61,15 @@ def run(args: argparse.Namespace) -> int:
         from data.horizon.metric_dem import load_metric_dem
 
         bank.check_dem(load_metric_dem(args.dem, sea_level=args.sea_level), f"DEM {args.dem}")
-    matcher_path = args.onnx / "matcher.onnx" if args.onnx else None
-    matcher = horizon_matcher(matcher_path if matcher_path and matcher_path.is_file() else None)
+    if args.onnx:
+        from runtime.localize import localize_files
+
+        if args.finder or args.segmenter:
+            raise InputError("give --onnx BUNDLE or the checkpoints --finder and --segmenter, not both")
+        print(localize_files(args.onnx, args.bank, args.out, args.images, args.profiles, args.compass))
+        return 0
     if args.profiles:
-        localizer = HorizonLocalizer(bank, matcher=matcher, band_deg=args.band_deg,
-                                     drop_harmonics=args.drop_harmonics)
+        localizer = HorizonLocalizer(bank, band_deg=args.band_deg, drop_harmonics=args.drop_harmonics)
         names, profiles, compass = read_profiles(args.profiles, args.compass)
         if profiles.shape[1] != bank.bins:
             raise InputError(f"profile file {args.profiles} has {profiles.shape[1]} azimuth bins per profile, the "
@@ -77,8 +80,8 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("--images needs --compass CSV (image,compass_deg)")
         names, compass = read_compass_csv(args.compass, need_image=True)
         paths = image_paths(args.images, names)
-        localizer = HorizonLocalizer(bank, *_networks(args), matcher=matcher, input_width=args.input_width,
-                                     band_deg=args.band_deg, drop_harmonics=args.drop_harmonics)
+        localizer = HorizonLocalizer(bank, *_networks(args), input_width=args.input_width, band_deg=args.band_deg,
+                                     drop_harmonics=args.drop_harmonics)
         profile = localizer.image_profiles([read_full_panorama(p) for p in paths])
     start = time.perf_counter()
     result = localizer.from_profiles(profile, torch.from_numpy(np.asarray(compass)).float())

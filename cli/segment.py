@@ -22,7 +22,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     src.add_argument("--max-frames", type=int, help="DAVIS: cut sequences to this many frames")
     model = p.add_argument_group("model: exactly one")
     model.add_argument("--ckpt", help="FRTMSegmentation checkpoint from train.py")
-    model.add_argument("--onnx", help="folder written by `python -m export.vos_onnx`")
+    model.add_argument("--onnx", help="a VOS bundle (python -m export.vos_onnx), run by the torch-free runtime "
+                       "(runtime.vos)")
     p.add_argument("--out", required=True, help="output folder for palette PNG masks")
     p.add_argument("--overlay", help="also write an overlay video (e.g. out.mp4)")
 
@@ -32,20 +33,29 @@ def run(args: argparse.Namespace) -> int:
 
     from models.builders import frtm_tracker
     from models.vos.inference import check_first_frame, segment_davis, segment_folder
+    from runtime.vos import OnnxFRTMTracker
 
     if args.davis is None and (args.video is None or args.mask is None):
         raise InputError("give --video DIR --mask FIRST.png, or --davis ROOT --split NAME")
     if (args.ckpt is None) == (args.onnx is None):
         raise InputError("give exactly one of --ckpt CKPT or --onnx DIR")
+    if args.onnx and args.overlay:
+        raise InputError("--overlay needs --ckpt (the runtime writes masks only)")
     if args.davis is None:
+        if args.onnx:
+            from runtime import vos
+
+            n, seconds = vos.segment_folder(OnnxFRTMTracker(args.onnx), args.video, args.mask, args.out)
+            print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
+            return 0
         from data.vos.io import list_frames
 
         check_first_frame(list_frames(args.video), args.mask)  # bad input fails before the model loads
-        tracker = frtm_tracker(ckpt=args.ckpt, onnx=args.onnx)
+        tracker = frtm_tracker(ckpt=args.ckpt)
         n, seconds = segment_folder(tracker, args.video, args.mask, args.out, args.overlay)
         print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS); masks in {args.out}")
         return 0
-    tracker = frtm_tracker(ckpt=args.ckpt, onnx=args.onnx)
+    tracker = OnnxFRTMTracker(args.onnx) if args.onnx else frtm_tracker(ckpt=args.ckpt)
     job = {"model": str(Path(args.ckpt or args.onnx).resolve())}
     result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames, job)
     print(json.dumps({"J&F": result["J&F-Mean"], "J": result["J-Mean"], "F": result["F-Mean"], "FPS": fps}))

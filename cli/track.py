@@ -16,6 +16,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     start.add_argument("--detect", type=int, help="detect this many good features to track in the first frame")
     p.add_argument("--method", default="ccot", choices=("ccot", "ccot_ff", "mosse", "klt"),
                    help="DCF variant, or klt = OpenCV pyramidal Lucas-Kanade (default: ccot)")
+    p.add_argument("--onnx", metavar="DIR", help="track with this tracking bundle in the torch-free runtime "
+                   "(runtime.tracking; its method, OpenCV's good features for --detect) instead of PyTorch")
     p.add_argument("--out", required=True, help="output .npz with tracks (T, P, 2), lost (T, P), psr (T, P)")
     p.add_argument("--video", help="also write an overlay video (.mp4)")
     p.add_argument("--device", default="cpu", help="torch device for the DCF methods (default: cpu)")
@@ -31,11 +33,19 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from core.files import writable_folder, write_npz
-    from core.threads import cpu_threads
     from core.frames import read_frames, read_points
+    from core.threads import cpu_threads
     from models.tracking.overlay import write_overlay_video
     from models.tracking.run import track_points
 
+    if args.onnx:
+        from runtime.tracking import track_files
+
+        message, result = track_files(args.onnx, args.frames, args.out, args.points, args.detect, args.threads)
+        if args.video:
+            write_overlay_video(args.video, read_frames(args.frames)[0], result["tracks"], result["lost"])
+        print(message + (f" and {args.video}" if args.video else ""))
+        return 0
     frames, paths = read_frames(args.frames)
     points = read_points(args.points) if args.points else None
     writable_folder(Path(args.out).parent)  # an unwritable output fails before the tracking, not after it

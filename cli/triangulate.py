@@ -19,21 +19,32 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="triangulate tracks with at least K views from their first K views (default 3)")
     p.add_argument("--method", choices=("dogleg", "midpoint", "dlt", "polynomial"), default="dogleg")
     p.add_argument("--dtype", choices=("float64", "float32"), default="float64")
+    p.add_argument("--onnx", type=Path, metavar="DIR", help="run the dogleg of this triangulation bundle in the "
+                   "torch-free runtime (runtime.triangulation; float32) instead of PyTorch")
     p.add_argument("--out", type=Path, metavar="points.ply", help="write the triangulated points as PLY")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
 
 def run(args: argparse.Namespace) -> int:
+    from core.command import print_report
+
+    if args.views < 2:
+        raise InputError(f"--views must be at least 2, got {args.views}")
+    if args.onnx:
+        from runtime.triangulation import triangulate_file
+
+        if args.method != "dogleg":
+            raise InputError(f"--onnx runs the exported dogleg; --method {args.method} has no graph")
+        print_report(triangulate_file(args.onnx, args.bundler or args.bal, args.bal is not None, args.views,
+                                      args.out), args.json)
+        return 0
     import torch
 
-    from core.command import print_report
     from data.sfm.bal import read_bal
     from data.sfm.bundler import read_bundler
     from data.sfm.ply import write_ply
     from models.geometry.evaluation import evaluate_reconstruction
 
-    if args.views < 2:
-        raise InputError(f"--views must be at least 2, got {args.views}")
     recon = read_bundler(args.bundler) if args.bundler else read_bal(args.bal)
     report, result, index = evaluate_reconstruction(recon, args.views, args.method, getattr(torch, args.dtype))
     if args.out:

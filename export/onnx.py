@@ -1,4 +1,4 @@
-"""ONNX export with the dynamo exporter and model checking (``models.onnx_graph`` runs the graphs)."""
+"""ONNX export with the dynamo exporter and model checking (``runtime.session`` runs the graphs)."""
 
 from __future__ import annotations
 

@@ -1,14 +1,21 @@
-"""Export one step of the DCF point tracker to ONNX (filters as state in and out).
+"""Export the DCF point tracker as a deployment bundle: its first-frame training and its per-frame step
+(``runtime.tracking`` runs them).
 
-    python -m export.tracking_onnx --out track_step.onnx [--method ccot] [--height 240 --width 320]
+    python -m export.tracking_onnx --out DIR [--method ccot] [--height 240 --width 320] [--check]
 
-Inputs: ``frame`` (1, 1, H, W) gray float32 (H, W dynamic), ``previous`` (the frame before it, for the
-forward-backward test), ``positions`` (P, 2), ``lost`` (P,) bool and the
-filter state of every pyramid level, ``filters_0`` .. ``filters_{L-1}`` (3, N_l, P, K_l) (real and imaginary
-parts of the numerators and the denominators, finest level first, point-interleaved), with a dynamic number of
-points P. Outputs: ``positions_out``, ``lost_out``, ``psr`` (P,) and the updated ``filters_l_out``. The graph
-uses one Gather per level for the patches, matrix products for the small DFTs and a fixed number of Newton
-iterations; the first frame's state comes from :meth:`PointTracker.init`.
+Graphs (frame height and width and the number of points P dynamic; the pyramid is built inside):
+
+- ``init.onnx``: ``frame`` (1, 1, H, W) gray float32 in [0, 255], ``points`` (P, 2) (x, y) px -> ``positions`` (P,
+  2), ``lost`` (P,) bool (outside the image), ``psr`` (P,) (inf) and the filters of every pyramid level,
+  ``filters_0`` .. ``filters_{L-1}`` (3, N_l, P, K_l) (real and imaginary parts of the numerators and the
+  denominators, finest level first, point-interleaved): :meth:`PointTracker.init`.
+- ``step.onnx``: ``frame``, ``previous`` (the frame before it, for the forward-backward test), ``positions``,
+  ``lost`` and the filters -> ``positions_out``, ``lost_out``, ``psr`` and ``filters_l_out``: one
+  :meth:`PointTracker.forward` (one Gather per level for the patches, matrix products for the small DFTs, a fixed
+  number of Newton iterations).
+
+``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
+difference and the lost flags that differ.
 """
 
 from __future__ import annotations
@@ -16,11 +23,21 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
 import torch
+from torch import Tensor, nn
 
 from core.command import CommandParser, run_command
-from export.onnx import export_onnx
+from core.errors import InputError
+from export.bundle import staged_bundle
+from export.onnx import OPSET, export_onnx
 from models.tracking import PointTracker
+from models.tracking.point_tracker import METHODS
+from runtime.bundle import write_manifest
+from runtime.tracking import OnnxPointTracker
+
+#: Frame sizes and point counts the graphs accept (``torch.export`` dimension bounds).
+MIN_SIZE, MAX_SIZE, MAX_POINTS = 64, 4096, 100_000
 
 
 def io_names(levels: int) -> tuple[list[str], list[str]]:
@@ -28,6 +45,19 @@ def io_names(levels: int) -> tuple[list[str], list[str]]:
     filters = [f"filters_{level}" for level in range(levels)]
     inputs = ["frame", "previous", "positions", "lost", *filters]
     return inputs, ["positions_out", "lost_out", "psr", *[f"{name}_out" for name in filters]]
+
+
+class InitGraph(nn.Module):
+    """:meth:`PointTracker.init` with tensors out: frame (1, 1, H, W), points (P, 2) -> positions, lost, psr,
+    filters of every level."""
+
+    def __init__(self, tracker: PointTracker) -> None:
+        super().__init__()
+        self.tracker = tracker
+
+    def forward(self, frame: Tensor, points: Tensor) -> tuple[Tensor, ...]:
+        state = self.tracker.init(frame, points)
+        return state.positions, state.lost, state.psr, *state.filters
 
 
 def example_inputs(tracker: PointTracker, height: int, width: int, points: int, seed: int = 0):
@@ -42,15 +72,12 @@ def example_inputs(tracker: PointTracker, height: int, width: int, points: int, 
     return nxt, frame, state.positions, state.lost, *state.filters
 
 
-def export_tracking_step(
-    path: str | Path, method: str = "ccot", height: int = 240, width: int = 320, points: int = 64
-) -> Path:
-    """Export :meth:`PointTracker.forward` for ``method`` with dynamic H, W and P; returns the path."""
-    tracker = PointTracker(method).eval()
+def export_tracking_step(path: str | Path, tracker: PointTracker, height: int = 240, width: int = 320,
+                         points: int = 64) -> Path:
+    """Export :meth:`PointTracker.forward` of ``tracker`` with dynamic H, W and P; returns the path."""
     args = example_inputs(tracker, height, width, points)
-    p = torch.export.Dim("points", min=2, max=100_000)
-    h = torch.export.Dim("height", min=64, max=4096)
-    w = torch.export.Dim("width", min=64, max=4096)
+    p = torch.export.Dim("points", min=2, max=MAX_POINTS)
+    h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
     inputs, outputs = io_names(tracker.levels)
     dynamic = {"frame": {2: h, 3: w}, "previous": {2: h, 3: w}, "positions": {0: p}, "lost": {0: p}}
     dynamic["filters"] = tuple({2: p} for _ in range(tracker.levels))  # forward's *filters
@@ -58,16 +85,74 @@ def export_tracking_step(
         return export_onnx(tracker, args, path, inputs, outputs, dynamic_shapes=dynamic)
 
 
+def export_tracking_init(path: str | Path, tracker: PointTracker, height: int = 240, width: int = 320,
+                         points: int = 64) -> Path:
+    """Export :meth:`PointTracker.init` of ``tracker`` (``InitGraph``) with dynamic H, W and P."""
+    frame, _, positions, *_ = example_inputs(tracker, height, width, points)
+    p = torch.export.Dim("points", min=2, max=MAX_POINTS)
+    h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
+    outputs = ["positions", "lost", "psr", *[f"filters_{level}" for level in range(tracker.levels)]]
+    with torch.no_grad():
+        return export_onnx(InitGraph(tracker), (frame, positions), path, ["frame", "points"], outputs,
+                           dynamic_shapes=({2: h, 3: w}, {0: p}))
+
+
+def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, width: int = 320) -> Path:
+    """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``bundle.json``)."""
+    if method not in METHODS:
+        raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
+    if not (MIN_SIZE <= height <= MAX_SIZE and MIN_SIZE <= width <= MAX_SIZE):
+        raise InputError(f"--height and --width must lie in [{MIN_SIZE}, {MAX_SIZE}], got {height} x {width}")
+    tracker = PointTracker(method).eval()
+    with staged_bundle(out) as folder:
+        export_tracking_init(folder / "init.onnx", tracker, height, width)
+        export_tracking_step(folder / "step.onnx", tracker, height, width)
+        write_manifest(
+            folder, "tracking", OPSET,
+            input={"frame": "(1, 1, H, W) gray float32 in [0, 255]", "min_size": MIN_SIZE, "max_size": MAX_SIZE,
+                   "max_points": MAX_POINTS, "levels": tracker.levels},
+            normalisation={"gray": "cv2.IMREAD_GRAYSCALE", "scale": 1.0},
+            thresholds={"psr_threshold": tracker.psr_threshold, "psr_relative": tracker.psr_relative,
+                        "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta},
+            settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
+                      "good_features": {"quality": 0.01, "min_distance": 5}})
+    return Path(out)
+
+
+def parity(out: str | Path, frames: int = 8, points: int = 300) -> tuple[float, int]:
+    """(largest |onnxruntime - PyTorch| position over tracked points in px, number of lost flags that differ) of
+    the bundle on the synthetic sequence."""
+    from data.flow import synthetic_sequence
+
+    runtime = OnnxPointTracker(out)
+    seq = synthetic_sequence(frames=frames, seed=3)
+    images = list(seq.frames.astype(np.float32))
+    start = np.random.default_rng(0).uniform(8, [images[0].shape[1] - 8, images[0].shape[0] - 8], (points, 2))
+    tracks, lost, _ = runtime.track(images, start)
+    ref_tracks, ref_lost, _ = PointTracker(runtime.method).track([torch.from_numpy(f) for f in images],
+                                                                 torch.from_numpy(start).float())
+    both = ~lost & ~ref_lost.numpy()
+    return float(np.abs(tracks - ref_tracks.numpy())[both].max()), int((lost != ref_lost.numpy()).sum())
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = CommandParser(prog="export.tracking_onnx", description=__doc__,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", required=True, help="output .onnx path")
-    parser.add_argument("--method", default="ccot", choices=["ccot", "ccot_ff", "mosse"])
-    parser.add_argument("--height", type=int, default=240, help="example frame height (the graph is dynamic)")
-    parser.add_argument("--width", type=int, default=320, help="example frame width (the graph is dynamic)")
+    parser.add_argument("--out", type=Path, required=True, help="bundle folder to write")
+    parser.add_argument("--method", default="ccot", choices=METHODS)
+    parser.add_argument("--height", type=int, default=240, help="example frame height (the graphs are dynamic)")
+    parser.add_argument("--width", type=int, default=320, help="example frame width (the graphs are dynamic)")
+    parser.add_argument("--check", action="store_true", help="compare onnxruntime with PyTorch on synthetic frames")
     args = parser.parse_args(argv)
-    return run_command("export.tracking_onnx",
-                       lambda: print(f"wrote {export_tracking_step(args.out, args.method, args.height, args.width)}"))
+
+    def run() -> None:
+        print(f"wrote {export_bundle(args.out, args.method, args.height, args.width)}")
+        if args.check:
+            error, flags = parity(args.out)
+            print(f"onnxruntime vs PyTorch on the synthetic sequence: max position difference {error:.2e} px, "
+                  f"{flags} lost flags differ")
+
+    return run_command("export.tracking_onnx", run)
 
 
 if __name__ == "__main__":

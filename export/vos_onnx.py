@@ -1,39 +1,53 @@
-"""ONNX export of FRTM (thesis ch. 5): one graph per component, with the tracker's state (filters, memory, CG
-state) outside the graphs, run by ``models.vos.onnx_tracker.OnnxFRTMTracker``.
+"""Export FRTM (thesis ch. 5) as a deployment bundle: one graph per component, with the tracker's state (filters,
+memory, CG state) outside the graphs, run by ``runtime.vos.OnnxFRTMTracker``.
 
-    python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check-videos N]
+    python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check] [--check-videos N]
+                              [--int8 [--calibration-videos N]]
 
 Graphs (dynamo exporter, opset 20; H, W, the number of objects N, samples K and memory slots M dynamic):
 
-- ``frtm_frame.onnx``: image (1, 3, H, W), W_p (N, C, D), W_f (N, C, k, k) -> logits (N, H, W), projected
-  features z (N, C, h, w): backbone + target-model application + decoder for every object of a frame.
-- ``frtm_features.onnx``: images (K, 3, H, W) -> target-model features (K, D, h, w) (first-frame samples).
-- ``frtm_init.onnx``: the joint W_p/W_f Gauss-Newton fit of one object on its K augmented samples.
-- ``frtm_insert.onnx``: one memory insertion (memory tensors in and out, hinge weights and the size test inside).
-- ``frtm_update.onnx``: one W_f optimizer update over M memory slots with the CG state in and out.
+- ``frame.onnx``: image (1, 3, H, W) RGB in [0, 1], W_p (N, C, D), W_f (N, C, k, k) -> logits (N, H, W),
+  projected features z (N, C, h, w): backbone + target-model application + decoder for every object of a frame.
+- ``features.onnx``: images (K, 3, H, W) -> target-model features (K, D, h, w) (first-frame samples).
+- ``init.onnx``: the joint W_p/W_f Gauss-Newton fit of one object on its K augmented samples, from the tracker's
+  seeded starting filters (built into the graph).
+- ``insert.onnx``: one memory insertion (memory tensors in and out, hinge weights and the size test inside).
+- ``update.onnx``: one W_f optimizer update over M memory slots with the CG state in and out.
 
 The per-object graphs (init, insert, update) take one object (B = 1, grouped convolutions need a static group
-count); ``OnnxFRTMTracker`` loops over objects. ``frtm_onnx.json`` stores the tracker settings (``FRTMSettings``)
-and the target-model input channels.
+count); the runtime loops over objects. ``bundle.json`` holds the tracker settings (``FRTMSettings``).
+``--check`` compares the runtime's masks with the PyTorch tracker's on held-out synthetic videos (IoU per frame
+and object). ``--int8`` replaces the frame and features graphs (backbone, decoder) by static int8 QDQ versions
+calibrated on synthetic validation videos (``export.int8``; the optimiser graphs stay float32) and stores J&F of
+both versions on held-out synthetic videos in the manifest.
 """
 
 from __future__ import annotations
 
-import json
-import os
+import argparse
 import shutil
+import tempfile
 from pathlib import Path
 
+import numpy as np
 import torch
 from torch import nn
 from torch.export import Dim
 
-from core.files import writable_folder
-from export.onnx import export_onnx
+from core.command import CommandParser, run_command
+from core.errors import InputError
+from export.bundle import staged_bundle
+from export.int8 import RecordingGraph, quantize_bundle_graphs
+from export.onnx import OPSET, export_onnx
 from models.vos.memory import Memory
-from models.vos.onnx_tracker import SETTINGS_FILE, OnnxFRTMTracker
 from models.vos.optimizer import SteepestDescent
+from models.vos.target_model import target_model_init
 from models.vos.tracker import FRTMTracker, frame_memory_insert
+from runtime.bundle import write_manifest
+from runtime.vos import OnnxFRTMTracker
+
+#: Largest frame side the graphs accept.
+MAX_SIZE = 4096
 
 
 def apply_filter_per_object(z: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
@@ -82,18 +96,23 @@ class FeaturesGraph(nn.Module):
 
 
 class InitGraph(nn.Module):
-    """Joint W_p/W_f fit; float32 in and out, computed in the tracker's ``optimizer_dtype``."""
+    """Joint W_p/W_f fit from the tracker's seeded starting filters (``target_model_init``, built in); float32 in
+    and out, computed in the tracker's ``optimizer_dtype``."""
 
     def __init__(self, tracker: FRTMTracker) -> None:
         super().__init__()
+        s = tracker.settings
         self.optimizer = tracker.init_optimizer
-        self.pixel_weighting = tracker.settings.pixel_weighting
-        self.dtype = getattr(torch, tracker.settings.optimizer_dtype)
+        self.pixel_weighting = s.pixel_weighting
+        self.dtype = getattr(torch, s.optimizer_dtype)
+        wp0, wf0 = target_model_init(1, tracker.target_input.channels, s.channels, s.kernel_size, s.seed)
+        self.register_buffer("wp0", wp0)
+        self.register_buffer("wf0", wf0)
 
-    def forward(self, x, labels, pixel_weights, gamma, wp, wf):
+    def forward(self, x, labels, pixel_weights, gamma):
         dt, keep = self.dtype, x.dtype
         v = pixel_weights.to(dt) if self.pixel_weighting else None
-        wp, wf, _, _ = self.optimizer(x.to(dt), labels.to(dt), v, gamma.to(dt), wf.to(dt), wp.to(dt))
+        wp, wf, _, _ = self.optimizer(x.to(dt), labels.to(dt), v, gamma.to(dt), self.wf0.to(dt), self.wp0.to(dt))
         return wp.to(keep), wf.to(keep)
 
 
@@ -127,34 +146,14 @@ class UpdateGraph(nn.Module):
         return wf.to(keep), p[0].to(keep), rho.to(keep), r_prev[0].to(keep)
 
 
-@torch.no_grad()
-def export_frtm(tracker: FRTMTracker, out_dir: str | Path, height: int = 96, width: int = 160) -> dict[str, Path]:
-    """Export the five FRTM graphs of ``tracker`` and its settings file into ``out_dir`` (example size ``height`` x
-    ``width``). The graphs are written to a hidden sibling folder first and moved in when all of them passed the
-    checker, so a failed export leaves no part of an export behind."""
-    final = writable_folder(out_dir)
-    out = final.with_name(f".{final.name}.partial")
-    shutil.rmtree(out, ignore_errors=True)
-    out.mkdir()
-    try:
-        paths = _export_graphs(tracker.eval(), out, height, width)
-        for name, path in paths.items():
-            os.replace(path, final / path.name)
-            paths[name] = final / path.name
-        os.replace(out / SETTINGS_FILE, final / SETTINGS_FILE)
-    finally:
-        shutil.rmtree(out, ignore_errors=True)
-    return paths
-
-
-def _export_graphs(tracker: FRTMTracker, out: Path, height: int, width: int) -> dict[str, Path]:
-    """The graphs and the settings file of ``export_frtm`` written into ``out``."""
+def _export_graphs(tracker: FRTMTracker, out: Path, height: int, width: int) -> None:
+    """The five graphs of ``tracker`` written into ``out`` (example frames of ``height`` x ``width``)."""
     c, k, d = tracker.settings.channels, tracker.settings.kernel_size, tracker.target_input.channels
     stride = tracker.target_input.stride
     h, w = -(-height // stride), -(-width // stride)
     lh, lw = tracker._label_size((height, width))
     n_obj, n_aug, n_mem = 2, max(tracker.settings.num_aug, 2), 3
-    big_h, big_w = Dim("H", min=2 * stride, max=4096), Dim("W", min=2 * stride, max=4096)
+    big_h, big_w = Dim("H", min=2 * stride, max=MAX_SIZE), Dim("W", min=2 * stride, max=MAX_SIZE)
     fh, fw, lbh, lbw = Dim("h", min=2), Dim("w", min=2), Dim("Hl", min=2), Dim("Wl", min=2)
     nd, kd, md = Dim("N", min=1, max=64), Dim("K", min=2, max=256), Dim("M", min=2, max=4096)
     g = torch.Generator().manual_seed(0)
@@ -162,53 +161,96 @@ def _export_graphs(tracker: FRTMTracker, out: Path, height: int, width: int) -> 
     def rnd(*shape: int) -> torch.Tensor:
         return torch.rand(*shape, generator=g)
 
-    paths = {}
-    paths["frame"] = export_onnx(
-        FrameGraph(tracker), (rnd(1, 3, height, width), rnd(n_obj, c, d), rnd(n_obj, c, k, k)),
-        out / "frtm_frame.onnx", ["image", "wp", "wf"], ["logits", "z"],
-        dynamic_shapes=({2: big_h, 3: big_w}, {0: nd}, {0: nd}))
-    paths["features"] = export_onnx(
-        FeaturesGraph(tracker), (rnd(n_aug, 3, height, width),), out / "frtm_features.onnx", ["images"],
-        ["features"], dynamic_shapes=({0: kd, 2: big_h, 3: big_w},))
-    paths["init"] = export_onnx(
-        InitGraph(tracker),
-        (rnd(1, n_aug, d, h, w), rnd(1, n_aug, lh, lw), rnd(1, n_aug, lh, lw) + 0.5, rnd(1, n_aug),
-         rnd(1, c, d), rnd(1, c, k, k)),
-        out / "frtm_init.onnx", ["x", "labels", "pixel_weights", "gamma", "wp0", "wf0"], ["wp", "wf"],
-        dynamic_shapes=({1: kd, 3: fh, 4: fw}, {1: kd, 2: lbh, 3: lbw}, {1: kd, 2: lbh, 3: lbw}, {1: kd}, None,
-                        None))
+    export_onnx(FrameGraph(tracker), (rnd(1, 3, height, width), rnd(n_obj, c, d), rnd(n_obj, c, k, k)),
+                out / "frame.onnx", ["image", "wp", "wf"], ["logits", "z"],
+                dynamic_shapes=({2: big_h, 3: big_w}, {0: nd}, {0: nd}))
+    export_onnx(FeaturesGraph(tracker), (rnd(n_aug, 3, height, width),), out / "features.onnx", ["images"],
+                ["features"], dynamic_shapes=({0: kd, 2: big_h, 3: big_w},))
+    export_onnx(InitGraph(tracker), (rnd(1, n_aug, d, h, w), rnd(1, n_aug, lh, lw), rnd(1, n_aug, lh, lw) + 0.5,
+                                     rnd(1, n_aug)),
+                out / "init.onnx", ["x", "labels", "pixel_weights", "gamma"], ["wp", "wf"],
+                dynamic_shapes=({1: kd, 3: fh, 4: fw}, {1: kd, 2: lbh, 3: lbw}, {1: kd, 2: lbh, 3: lbw}, {1: kd}))
     mem = (rnd(1, n_mem, c, h, w), rnd(1, n_mem, lh, lw), rnd(1, n_mem, lh, lw), rnd(1, n_mem),
            torch.tensor([1]))
-    paths["insert"] = export_onnx(
-        InsertGraph(tracker), (*mem, rnd(1, c, h, w), rnd(1, lh, lw)), out / "frtm_insert.onnx",
-        ["features", "labels", "pixel_weights", "weights", "newest", "z", "label"],
-        ["features_out", "labels_out", "pixel_weights_out", "weights_out", "newest_out"],
-        dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md}, None,
-                        {2: fh, 3: fw}, {1: lbh, 2: lbw}))
-    paths["update"] = export_onnx(
-        UpdateGraph(tracker), (*mem[:4], rnd(1, c, k, k), rnd(1, c, k, k), torch.ones(1), rnd(1, c, k, k)),
-        out / "frtm_update.onnx",
-        ["features", "labels", "pixel_weights", "weights", "wf", "p", "rho", "r_prev"],
-        ["wf_out", "p_out", "rho_out", "r_prev_out"],
-        dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md}, None,
-                        None, None, None))
-    settings = {"settings": tracker.settings.to_dict(), "in_channels": d}
-    (out / SETTINGS_FILE).write_text(json.dumps(settings, indent=2))
-    return paths
+    export_onnx(InsertGraph(tracker), (*mem, rnd(1, c, h, w), rnd(1, lh, lw)), out / "insert.onnx",
+                ["features", "labels", "pixel_weights", "weights", "newest", "z", "label"],
+                ["features_out", "labels_out", "pixel_weights_out", "weights_out", "newest_out"],
+                dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md},
+                                None, {2: fh, 3: fw}, {1: lbh, 2: lbw}))
+    export_onnx(UpdateGraph(tracker), (*mem[:4], rnd(1, c, k, k), rnd(1, c, k, k), torch.ones(1), rnd(1, c, k, k)),
+                out / "update.onnx", ["features", "labels", "pixel_weights", "weights", "wf", "p", "rho", "r_prev"],
+                ["wf_out", "p_out", "rho_out", "r_prev_out"],
+                dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md},
+                                None, None, None, None))
 
 
-def mask_parity(
-    tracker: FRTMTracker, onnx_dir: str | Path, videos: list[tuple[str, torch.Tensor, torch.Tensor]]
-) -> list[float]:
-    """Per frame and object IoU between the PyTorch tracker's and the onnxruntime tracker's masks, each run
-    closed loop (own memory and filter updates) from the first-frame labels; frames where neither segments
-    the object are skipped (IoU undefined)."""
+def _sections(tracker: FRTMTracker) -> dict:
+    """The manifest sections of a VOS bundle of ``tracker``."""
+    s, target = tracker.settings, tracker.target_input
+    return {
+        "input": {"image": "(1, 3, H, W) RGB float32 in [0, 1]", "min_size": 2 * target.stride, "max_size": MAX_SIZE,
+                  "stride": target.stride, "in_channels": target.channels},
+        "normalisation": {"scale": 1 / 255, "order": "RGB", "mean_std": "inside the backbone graph"},
+        "thresholds": {"min_update_pixels": s.min_update_pixels, "fg_target": s.fg_target},
+        "settings": s.to_dict(),
+    }
+
+
+Videos = list[tuple[str, torch.Tensor, torch.Tensor]]
+
+
+def videos_jf(tracker: OnnxFRTMTracker, videos: Videos) -> float:
+    """J&F mean (DAVIS protocol, %) of the runtime ``tracker`` on videos (name, frames uint8, labels)."""
+    from models.vos.metrics import evaluate_sequence, summarize
+
+    per_seq = {}
+    for name, frames, labels in videos:
+        pred = torch.from_numpy(np.stack(list(tracker.segment(frames.numpy(), {0: labels[0].numpy()}))))
+        per_seq[name] = evaluate_sequence(pred, torch.where(labels < 0, 0, labels))
+    return float(summarize(per_seq)["J&F-Mean"]) * 100
+
+
+@torch.no_grad()
+def export_bundle(tracker: FRTMTracker, out: str | Path, height: int = 96, width: int = 160, int8: bool = False,
+                  calibration: Videos | None = None, held_out: Videos | None = None) -> dict:
+    """Write the VOS bundle of ``tracker`` to the folder ``out`` (example frames ``height`` x ``width``). With
+    ``int8`` the frame and features graphs are quantized, calibrated on the ``calibration`` videos (name, frames
+    uint8 (T, 3, H, W), labels (T, H, W)), and J&F of both versions on the ``held_out`` videos goes into the
+    manifest; returns that int8 report (empty without ``int8``)."""
+    tracker = tracker.eval()
+    sections = _sections(tracker)
+    report: dict = {}
+    if int8 and (not calibration or not held_out):
+        raise InputError("an int8 export needs calibration and held-out videos")
+    with staged_bundle(out) as folder, tempfile.TemporaryDirectory() as tmp:
+        _export_graphs(tracker, folder, height, width)
+        write_manifest(folder, "vos", OPSET, **sections)
+        if int8:
+            fp32 = Path(tmp) / "fp32"
+            shutil.copytree(folder, fp32)
+            runtime = OnnxFRTMTracker(fp32)
+            recorded = {name: RecordingGraph(runtime.graphs[name]) for name in ("frame", "features")}
+            runtime.graphs.update(recorded)
+            for _, frames, labels in calibration:
+                list(runtime.segment(frames.numpy(), {0: labels[0].numpy()}))
+            report["graphs"] = quantize_bundle_graphs(folder, recorded)
+            write_manifest(folder, "vos", OPSET, precision="int8", **sections)
+            report["accuracy"] = {"float32_jf": videos_jf(OnnxFRTMTracker(fp32), held_out),
+                                  "int8_jf": videos_jf(OnnxFRTMTracker(folder), held_out), "videos": len(held_out)}
+            write_manifest(folder, "vos", OPSET, precision="int8", **sections, int8=report)
+    return report
+
+
+def mask_parity(tracker: FRTMTracker, bundle: str | Path, videos: Videos) -> list[float]:
+    """Per frame and object IoU between the PyTorch tracker's and the runtime's masks, each run closed loop (own
+    memory and filter updates) from the first-frame labels; frames where neither segments the object are skipped
+    (IoU undefined)."""
     ious = []
-    ox = OnnxFRTMTracker(onnx_dir)
+    runtime = OnnxFRTMTracker(bundle)
     for _, frames, labels in videos:
         ids = [i for i in labels[0].unique().tolist() if i not in (0, 255)]
-        ref = list(tracker.segment(frames, {0: labels[0]}))
-        got = list(ox.segment(frames, {0: labels[0]}))
+        ref = [a.numpy() for a in tracker.segment(frames, {0: labels[0]})]
+        got = list(runtime.segment(frames.numpy(), {0: labels[0].numpy()}))
         for a, b in zip(ref, got, strict=True):
             for k in ids:
                 union = int(((a == k) | (b == k)).sum())
@@ -218,37 +260,46 @@ def mask_parity(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check-videos N]``: export,
-    then optionally compare the onnxruntime tracker's masks with PyTorch's on N held-out synthetic videos."""
-    from core.command import CommandParser, run_command
-
-    p = CommandParser(prog="export.vos_onnx",
-                      description="Export an FRTMSegmentation checkpoint to the FRTM ONNX graphs.")
+    p = CommandParser(prog="export.vos_onnx", description=__doc__,
+                      formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--ckpt", required=True, help="FRTMSegmentation checkpoint")
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--out", required=True, help="bundle folder to write")
     p.add_argument("--height", type=int, default=96, help="example frame height (the graphs accept any)")
     p.add_argument("--width", type=int, default=160, help="example frame width")
-    p.add_argument("--check-videos", type=int, default=0,
-                   help="mask parity on this many held-out synthetic test videos (the checkpoint's data settings)")
-    p.add_argument("--check-frames", type=int, default=20, help="frames per parity video")
+    p.add_argument("--check", action="store_true", help="compare the runtime's masks with PyTorch's")
+    p.add_argument("--check-videos", type=int, default=4,
+                   help="held-out synthetic test videos for --check and the int8 report (the checkpoint's data "
+                   "settings; default 4)")
+    p.add_argument("--check-frames", type=int, default=20, help="frames per held-out video")
+    p.add_argument("--int8", action="store_true", help="int8 frame and features graphs, with a J&F report")
+    p.add_argument("--calibration-videos", type=int, default=4, help="synthetic validation videos to calibrate on")
     args = p.parse_args(argv)
     return run_command("export.vos_onnx", lambda: _export_and_check(args))
 
 
-def _export_and_check(args) -> None:
+def _export_and_check(args: argparse.Namespace) -> None:
+    from data.vos.datamodule import synthetic_videos
     from models.builders import frtm_tracker
-    from models.vos.inference import checkpoint_test_videos
+    from models.vos.inference import checkpoint_test_videos, synthetic_test_settings
 
     tracker = frtm_tracker(ckpt=args.ckpt)
-    videos = checkpoint_test_videos(args.ckpt, args.check_videos, args.check_frames)
-    paths = export_frtm(tracker, args.out, args.height, args.width)
-    for name, path in paths.items():
-        print(f"{name:>9}: {path}")
-    if videos:
-        ious = torch.tensor(mask_parity(tracker, args.out, videos))
-        print(f"mask parity onnxruntime vs PyTorch on {len(videos)} held-out synthetic videos: {len(ious)} "
+    need = args.check or args.int8
+    held_out = checkpoint_test_videos(args.ckpt, args.check_videos if need else 0, args.check_frames)
+    calibration = (synthetic_videos("val", args.calibration_videos, 0, n_frames=args.check_frames,
+                                    **synthetic_test_settings(args.ckpt)) if args.int8 else None)
+    report = export_bundle(tracker, args.out, args.height, args.width, args.int8, calibration, held_out)
+    print(f"wrote {args.out}")
+    if args.check:
+        ious = np.array(mask_parity(tracker, args.out, held_out))
+        print(f"mask parity runtime vs PyTorch on {len(held_out)} held-out synthetic videos: {len(ious)} "
               f"frame-objects, IoU mean {ious.mean():.4f}, min {ious.min():.4f}, below 0.99: "
               f"{int((ious < 0.99).sum())}")
+    for name, g in report.get("graphs", {}).items():
+        print(f"int8 {name}: {g['fp32_bytes'] / 1e6:.2f} -> {g['int8_bytes'] / 1e6:.2f} MB, {g['fp32_ms']:.1f} -> "
+              f"{g['int8_ms']:.1f} ms per call (1 thread)")
+    if "accuracy" in report:
+        a = report["accuracy"]
+        print(f"J&F on {a['videos']} held-out synthetic videos: float32 {a['float32_jf']:.2f}, int8 {a['int8_jf']:.2f}")
 
 
 if __name__ == "__main__":

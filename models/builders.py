@@ -1,16 +1,14 @@
-"""One builder per deployable model, torchvision style: each returns a ready callable from a Lightning
-checkpoint (``ckpt=``, PyTorch) or an exported graph (``onnx=``, onnxruntime), or an untrained model from keyword
-arguments. Commands, benchmarks and exports build their models here.
+"""One builder per deployable model, torchvision style: each returns a ready PyTorch model from a Lightning
+checkpoint (``ckpt=``), or an untrained model from keyword arguments. Commands, benchmarks and exports build their
+models here; the exported graphs run in the torch-free deployment runtime (``runtime/``), which ``infer.py``'s
+``--onnx`` options call.
 
     finder = horizon_finder(ckpt="finder.ckpt")            # nn.Module: (B, 3, H, W) -> (B, 4)
-    finder = horizon_finder(onnx="bundle/finder.onnx")     # OnnxGraph with the same call
     tracker = frtm_tracker(ckpt="frtm.ckpt", channels=64)  # FRTMTracker with changed settings
-    tracker = frtm_tracker(onnx="frtm_export/")            # OnnxFRTMTracker
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import torch
@@ -21,39 +19,23 @@ from core.errors import InputError
 from models.checkpoint import load_system, newest_checkpoint
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 from models.horizon.segmenter import PanoramaSegmenter
-from models.onnx_graph import OnnxGraph
 from models.vos.lit import FRTMSegmentation
-from models.vos.onnx_tracker import OnnxFRTMTracker
-from models.vos.tracker import FRTMLoop
+from models.vos.tracker import FRTMTracker
 
 #: A file or folder given as a string or a path.
 Source = str | Path
 
 
-def _one_source(ckpt: Source | None, other: Source | None, what: str, allow_none: bool = True,
-                other_name: str = "an ONNX export") -> None:
-    if ckpt is not None and other is not None:
-        raise InputError(f"{what}: give a checkpoint or {other_name}, not both")
-    if not allow_none and ckpt is None and other is None:
-        raise InputError(f"{what}: give a checkpoint (--ckpt) or an ONNX export (--onnx)")
-
-
-def horizon_finder(ckpt: Source | None = None, onnx: Source | None = None, **network_args) -> Callable:
+def horizon_finder(ckpt: Source | None = None, **network_args) -> nn.Module:
     """HorizonFinder (thesis ch. 4.3): tilted panoramas (B, 3, H, W) in [0, 1] -> (B, 4) (sin, cos) of pitch
-    and roll. Without a source, an untrained ``HorizonFinderSystem(**network_args)`` network."""
-    _one_source(ckpt, onnx, "horizon finder")
-    if onnx is not None:
-        return OnnxGraph(onnx)
+    and roll. Without a checkpoint, an untrained ``HorizonFinderSystem(**network_args)`` network."""
     system = load_system(HorizonFinderSystem, ckpt) if ckpt is not None else HorizonFinderSystem(**network_args)
     return system.net.eval()
 
 
-def horizon_segmenter(ckpt: Source | None = None, onnx: Source | None = None, **network_args) -> Callable:
+def horizon_segmenter(ckpt: Source | None = None, **network_args) -> nn.Module:
     """HorizonSegmenter on whole levelled panoramas (``PanoramaSegmenter``): (B, 3, H, W) -> (B, 2, W) tan
-    elevation of the horizon and the water line. Without a source, an untrained network."""
-    _one_source(ckpt, onnx, "horizon segmenter")
-    if onnx is not None:
-        return OnnxGraph(onnx)
+    elevation of the horizon and the water line. Without a checkpoint, an untrained network."""
     system = load_system(HorizonSegmenterSystem, ckpt) if ckpt is not None else HorizonSegmenterSystem(**network_args)
     return PanoramaSegmenter(system.net).eval()
 
@@ -63,14 +45,14 @@ HORIZON_DEMO_RUNS = Path("outputs/horizon")
 HORIZON_NETWORKS = ("finder", "segmenter", "level")
 
 
-def horizon_network(which: str, ckpt: Source | None = None, onnx: Source | None = None, **network_args) -> Callable:
+def horizon_network(which: str, ckpt: Source | None = None, **network_args) -> nn.Module:
     """``horizon_finder``, ``horizon_segmenter`` or ``level_panorama`` by name (``which``)."""
     if which not in HORIZON_NETWORKS:
         raise InputError(f"the horizon network must be one of {', '.join(HORIZON_NETWORKS)}, got {which!r}")
     if which == "level":
-        return level_panorama(onnx)
+        return level_panorama()
     builder = horizon_finder if which == "finder" else horizon_segmenter
-    return builder(ckpt, onnx, **network_args)
+    return builder(ckpt, **network_args)
 
 
 def demo_horizon_checkpoint(which: str) -> Path | None:
@@ -78,22 +60,17 @@ def demo_horizon_checkpoint(which: str) -> Path | None:
     return newest_checkpoint(HORIZON_DEMO_RUNS, f"{which}_demo/**/last.ckpt")
 
 
-def level_panorama(onnx: Source | None = None) -> Callable:
+def level_panorama() -> nn.Module:
     """The levelling warp (thesis eq. 4.2): image (B, 3, H, W), pitch (B,), roll (B,) rad -> (B, 3, H, W)."""
-    return OnnxGraph(onnx) if onnx is not None else LevelPanorama().eval()
-
-
-def horizon_matcher(onnx: Source | None = None) -> Callable | None:
-    """The exported band-PSR matcher (``export.localization_onnx``): filters, profiles, headings -> (psr,
-    heading); None without a graph (``models.horizon.localizer.locate`` then matches in PyTorch)."""
-    return None if onnx is None else OnnxGraph(onnx)
+    return LevelPanorama().eval()
 
 
 def frtm_system(ckpt: Source | None = None, config: Source | None = None, **hparams) -> FRTMSegmentation:
     """The FRTM training system (backbone, decoder, tracker settings) in eval mode: from a checkpoint, from the
     ``model`` section of a train.py YAML config (untrained; same architecture and settings), or untrained from
     ``hparams``. Untrained systems are built with torch's seed 0."""
-    _one_source(ckpt, config, "FRTM system", other_name="a config")
+    if ckpt is not None and config is not None:
+        raise InputError("FRTM system: give a checkpoint or a config, not both")
     if ckpt is not None:
         return load_system(FRTMSegmentation, ckpt)
     if config is not None:
@@ -102,15 +79,9 @@ def frtm_system(ckpt: Source | None = None, config: Source | None = None, **hpar
     return FRTMSegmentation(**hparams).eval()
 
 
-def frtm_tracker(ckpt: Source | None = None, onnx: Source | None = None, use_decoder: bool = True,
-                 **settings) -> FRTMLoop:
+def frtm_tracker(ckpt: Source, use_decoder: bool = True, **settings) -> FRTMTracker:
     """An FRTM video object segmenter (thesis ch. 5): ``FRTMTracker`` on a checkpoint's networks with its tracker
-    settings changed by ``settings`` (``FRTMSettings`` fields), or ``OnnxFRTMTracker`` on an export folder."""
-    _one_source(ckpt, onnx, "FRTM tracker", allow_none=False)
-    if onnx is not None:
-        if settings or not use_decoder:
-            raise InputError("an ONNX export has its tracker settings built in; re-export to change them")
-        return OnnxFRTMTracker(onnx)
+    settings changed by ``settings`` (``FRTMSettings`` fields)."""
     return frtm_system(ckpt).make_tracker(use_decoder=use_decoder, **settings)
 
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 
-from data.sfm.reconstruction import Reconstruction
 from core.tokens import TokenReader
+from data.sfm.reconstruction import Reconstruction
 
 
 def read_bal(path: str | Path) -> Reconstruction:

@@ -7,8 +7,8 @@ from pathlib import Path
 import torch
 
 from core.errors import InputError
-from data.sfm.reconstruction import Reconstruction
 from core.tokens import TokenReader
+from data.sfm.reconstruction import Reconstruction
 
 
 def read_bundler(path: str | Path) -> Reconstruction:

@@ -139,7 +139,7 @@ def panorama_profiles(
 
     Args:
         image: (B, 3, H, W) tilted 360-degree panoramas in [0, 1], column 0 forward.
-        finder: image (B, 3, h, w) -> (B, 4) (sin, cos) of pitch and roll (network or ``OnnxGraph``).
+        finder: image (B, 3, h, w) -> (B, 4) (sin, cos) of pitch and roll (a network).
         segmenter: levelled image (B, 3, h, w) -> (B, 2, w) tan elevation of horizon and water line.
         input_width: network input width in px (the panorama is resized, keeping its aspect).
     Returns:

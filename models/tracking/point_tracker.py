@@ -71,6 +71,16 @@ def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
     return pyramid
 
 
+def _exporting() -> bool:
+    return torch.compiler.is_exporting() or torch.onnx.is_in_onnx_export()
+
+
+def _lerp(start: Tensor, end: Tensor, weight: Tensor) -> Tensor:
+    """``torch.lerp`` (one fused kernel) in eager mode; ``start + weight (end - start)`` in an exported graph, where
+    ``lerp`` becomes a broadcast ``Where`` over two branches that onnxruntime runs several times slower."""
+    return start + weight * (end - start) if _exporting() else torch.lerp(start, end, weight)
+
+
 def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     """Bilinear ``size x size`` patches around sub-pixel centres, natural order (centre at ``size // 2``),
     point-interleaved.
@@ -93,16 +103,17 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     frac = (centres - corner)[None, :, :, None]  # (1, P, 2, 1)
     padded = F.pad(image, (r, r + 1, r, r + 1), mode="replicate")[0, 0]  # pixel (x, y) at (x + r, y + r)
     x0, y0 = corner.long().unbind(-1)
-    if torch.compiler.is_exporting() or torch.onnx.is_in_onnx_export():
-        # ONNX: one Gather with flat indices (as_strided has no ONNX equivalent); the same values
+    if _exporting():
+        # ONNX: one Gather with flat indices (as_strided has no ONNX equivalent); the same values. index_select
+        # exports as Gather, which onnxruntime runs several times faster than the GatherND of advanced indexing
         offsets = torch.arange(n, device=centres.device)
         flat = (y0 * padded.shape[-1] + x0)[None, :, None] + offsets[:, None, None] * padded.shape[-1] + offsets
-        crops = padded.flatten()[flat]
+        crops = torch.index_select(padded.flatten(), 0, flat.flatten()).view(flat.shape)
     else:
         stride = padded.stride(0)
         crops = padded.as_strided((n, h, w, n), (stride, stride, 1, 1))[:, y0, x0]  # (size + 1, P, size + 1)
-    rows = torch.lerp(crops[:-1], crops[1:], frac[:, :, 1])
-    return torch.lerp(rows[..., :-1], rows[..., 1:], frac[:, :, 0])
+    rows = _lerp(crops[:-1], crops[1:], frac[:, :, 1])
+    return _lerp(rows[..., :-1], rows[..., 1:], frac[:, :, 0])
 
 
 def _per_level(value, levels: int, name: str, kind: type = int) -> tuple:
@@ -236,7 +247,7 @@ class PointTracker(nn.Module):
         weights, kept as running sums). ``filters`` None starts from scratch (``eta`` unused)."""
         y = getattr(self, f"label_{level}")
         new = torch.stack([zr * y, -zi * y, zr.square() + zi.square()])
-        return new if filters is None else torch.lerp(filters, new, eta[:, None])
+        return new if filters is None else _lerp(filters, new, eta[:, None])
 
     def init(self, frame: Tensor, points: Tensor) -> TrackerState:
         """Train every point's filters on ``frame`` ``(H, W)``; points ``(P, 2)`` outside the image start
@@ -328,7 +339,7 @@ class PointTracker(nn.Module):
         :meth:`_backward_error`). Eager runs test only the weak points (a few per cent, so the test costs
         almost nothing); an exported graph, whose shapes cannot depend on the data, tests all of them. Both
         give the same flags."""
-        if torch.compiler.is_exporting() or torch.onnx.is_in_onnx_export() or torch.compiler.is_compiling():
+        if _exporting() or torch.compiler.is_compiling():
             return weak & ~(self._backward_error(previous, start, zr, zi) <= self.fb_threshold)
         index = weak.nonzero()[:, 0]
         miss = self._backward_error(previous, start[index], zr[:, index], zi[:, index])

@@ -143,6 +143,7 @@ def segment_davis(
     """Segment every sequence of a DAVIS split, write palette PNGs under ``out/<sequence>/`` and the
     per-object CSV ``out/per_sequence.csv``; returns (global J&F statistics, FPS of the sequences run).
 
+    ``tracker`` may also be the deployment runtime's (``runtime.vos.OnnxFRTMTracker``, numpy masks out).
     Resumable: a sequence's scores are stored beside its masks once all of them are written, so a rerun after an
     interruption skips finished sequences and writes the same CSV. ``job`` (e.g. the model's path) identifies
     the run: an ``out`` written by another job is an ``InputError``.
@@ -163,7 +164,7 @@ def segment_davis(
             continue
         frames, labels = seq.load(max_frames)
         start = time.perf_counter()
-        pred = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+        pred = torch.stack([torch.as_tensor(p) for p in tracker.segment(frames, {0: labels[0]})])
         seconds += time.perf_counter() - start
         n_frames += frames.shape[0]
         for path, lab in zip(seq.frames, pred, strict=False):

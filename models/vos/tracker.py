@@ -51,7 +51,7 @@ class FRTMLoop(VideoLoop):
     """The host side of FRTM shared by every engine: objects, memory, the update schedule and the merging of
     objects, around five computational hooks (``target_features``, ``fit_target_models``, ``segment_frame``,
     ``insert_samples``, ``optimize_filters``) that ``FRTMTracker`` runs in PyTorch and
-    ``models.vos.onnx_tracker.OnnxFRTMTracker`` in onnxruntime.
+    ``runtime.vos.OnnxFRTMTracker`` reproduces in numpy on the exported graphs.
 
     Args:
         settings: the tracker settings (``FRTMSettings``).

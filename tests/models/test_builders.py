@@ -1,22 +1,19 @@
-"""models.builders: every deployable model from a checkpoint, an ONNX graph or untrained; the sources checked."""
+"""models.builders: every deployable model from a checkpoint or untrained; the sources checked."""
 
 import pytest
 import torch
 
 from core.errors import InputError
-from export.horizon_onnx import export_horizon
 from models.builders import (
     demo_horizon_checkpoint,
     frtm_system,
     frtm_tracker,
     horizon_finder,
-    horizon_matcher,
     horizon_network,
     horizon_segmenter,
     level_panorama,
 )
 from models.horizon.segmenter import PanoramaSegmenter
-from models.onnx_graph import OnnxGraph
 from models.vos.tracker import FRTMTracker
 from tests.models.test_checkpoint import SMALL, save_checkpoint
 
@@ -34,24 +31,9 @@ def test_horizon_networks_from_checkpoints_and_untrained(tmp_path) -> None:
     image = torch.rand(1, 3, 32, 256)
     torch.testing.assert_close(finder(image), system.net.eval()(image))
     assert isinstance(horizon_segmenter(**SMALL), PanoramaSegmenter)
-    assert horizon_network("level") is not None and horizon_matcher() is None
-    with pytest.raises(InputError, match="not both"):
-        horizon_finder(ckpt=tmp_path / "finder.ckpt", onnx=tmp_path / "finder.onnx")
+    assert isinstance(horizon_network("level"), type(level_panorama()))
     with pytest.raises(InputError, match="must be one of"):
         horizon_network("matcher")
-
-
-@pytest.mark.slow
-def test_onnx_builders_give_the_same_call(tmp_path) -> None:
-    torch.manual_seed(0)
-    net = horizon_finder(**SMALL)
-    path = export_horizon("finder", net, tmp_path / "finder.onnx", height=32, width=256)
-    onnx_finder = horizon_finder(onnx=path)
-    assert isinstance(onnx_finder, OnnxGraph)
-    image = torch.rand(2, 3, 32, 320, generator=torch.Generator().manual_seed(1))
-    with torch.no_grad():
-        torch.testing.assert_close(onnx_finder(image), net(image), rtol=1e-4, atol=1e-4)
-    assert isinstance(level_panorama(), torch.nn.Module)
 
 
 def test_frtm_system_and_tracker(tmp_path) -> None:
@@ -63,10 +45,8 @@ def test_frtm_system_and_tracker(tmp_path) -> None:
     config = tmp_path / "tiny.yaml"
     config.write_text("model:\n  class_path: models.vos.lit.FRTMSegmentation\n  init_args:\n    mdim: 8\n")
     assert frtm_system(config=config).hparams.mdim == 8
-    with pytest.raises(InputError, match="give a checkpoint"):
-        frtm_tracker()
-    with pytest.raises(InputError, match="built in"):
-        frtm_tracker(onnx=tmp_path, channels=4)
+    with pytest.raises(InputError, match="not both"):
+        frtm_system(tmp_path / "frtm.ckpt", config=config)
     with pytest.raises(InputError, match="unknown tracker settings"):
         frtm_tracker(ckpt=tmp_path / "frtm.ckpt", chanels=4)
     (tmp_path / "other.yaml").write_text("model:\n  class_path: models.horizon.lit.HorizonFinderSystem\n")

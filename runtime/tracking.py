@@ -1,0 +1,133 @@
+"""DCF point tracking from the exported graphs (thesis ch. 3), torch-free.
+
+    python -m runtime.tracking --bundle DIR --frames DIR_OR_GLOB (--points FILE | --detect N) --out tracks.npz
+                               [--threads N] [--provider cpu|cuda|tensorrt|coreml]
+
+Start points come from a file or from OpenCV's good features to track (Shi-Tomasi) in the first frame; the
+bundle's ``init`` graph trains every point's filters on it, then its ``step`` graph tracks all points into each
+next frame (pyramid, coarse-to-fine correlation, lost flags and filter updates inside the graph; the filters are
+numpy state between the calls). The tracks file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2),
+``lost`` (T, P), ``psr`` (T, P), the start ``points``, ``method`` and ``frames``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Iterable
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from core.command import CommandParser, run_command
+from core.errors import InputError
+from core.files import writable_folder, write_npz
+from core.frames import read_frames, read_points
+from runtime.bundle import Bundle, add_runtime_arguments
+
+
+def good_features(frame: np.ndarray, count: int, quality: float = 0.01, min_distance: float = 5) -> np.ndarray:
+    """Up to ``count`` Shi-Tomasi corners (``cv2.goodFeaturesToTrack``) of a gray frame (H, W), strongest first,
+    as (P, 2) (x, y) float64; ``InputError`` when there are none."""
+    if count < 1:
+        raise InputError(f"--detect needs a positive number of points, got {count}")
+    gray = np.clip(np.asarray(frame), 0, 255).round().astype(np.uint8)
+    corners = cv2.goodFeaturesToTrack(gray, count, quality, min_distance)
+    if corners is None:
+        raise InputError("no good features to track in the first frame (is it blank?)")
+    return corners.reshape(-1, 2).astype(np.float64)
+
+
+class OnnxPointTracker:
+    """The point tracker of a tracking bundle.
+
+    Args:
+        bundle: the bundle folder; threads, provider: as ``runtime.session.Graph``.
+    """
+
+    def __init__(self, bundle: str | Path, threads: int | None = None, provider: str = "cpu") -> None:
+        self.bundle = Bundle(bundle, "tracking", threads, provider)
+        self.method = self.bundle.section("settings")["method"]
+        size = self.bundle.section("input")
+        self.min_size, self.max_size = int(size["min_size"]), int(size["max_size"])
+        self.init_graph, self.step_graph = self.bundle.graph("init"), self.bundle.graph("step")
+
+    def _frame(self, frame: np.ndarray, index: int) -> np.ndarray:
+        frame = np.asarray(frame, np.float32)
+        if frame.ndim != 2 or not all(self.min_size <= n <= self.max_size for n in frame.shape):
+            raise InputError(f"frame {index} is {frame.shape}: the bundle's tracker takes (H, W) gray frames of "
+                             f"{self.min_size} to {self.max_size} px a side")
+        return frame[None, None]
+
+    def track(self, frames: Iterable[np.ndarray], points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Track points (P, 2) given in the first frame through gray frames (H, W) of equal size.
+
+        Returns:
+            tracks (T, P, 2) float32, lost (T, P) bool and PSR (T, P) float32 (inf in frame 0).
+        """
+        points = np.asarray(points, np.float32)
+        if points.ndim != 2 or points.shape[1] != 2 or len(points) == 0:
+            raise InputError(f"points must be a non-empty (P, 2) array, got shape {points.shape}")
+        single = len(points) == 1  # the graphs take at least 2 points; a copy leaves a lone point's result alone
+        points = np.concatenate([points, points]) if single else points
+        tracks, lost, psr, previous = [], [], [], None
+        for t, frame in enumerate(frames):
+            image = self._frame(frame, t)
+            if previous is None:
+                positions, flags, scores, *filters = self.init_graph(image, points)
+            else:
+                if image.shape != previous.shape:
+                    raise InputError(f"frame {t} has size {image.shape[2:]}, frame 0 has {previous.shape[2:]}")
+                positions, flags, scores, *filters = self.step_graph(image, previous, positions, flags, *filters)
+            previous = image
+            tracks.append(positions)
+            lost.append(flags)
+            psr.append(scores)
+        if previous is None:
+            raise InputError("no frames to track")
+        keep = slice(0, 1) if single else slice(None)
+        return tuple(np.stack(a)[:, keep] for a in (tracks, lost, psr))  # type: ignore[return-value]
+
+
+def track_files(bundle: str | Path, frames: str | Path, out: str | Path, points: str | Path | None = None,
+                detect: int | None = None, threads: int | None = None, provider: str = "cpu") -> tuple[str, dict]:
+    """Track the start ``points`` (a file) or ``detect`` good features through the frames ``frames`` (a folder or
+    glob) with the bundle and write the tracks file ``out``; returns a one-line summary and the written arrays
+    (the command ``runtime.tracking``)."""
+    if (points is None) == (detect is None):
+        raise InputError("give either start points (--points) or a number of points to detect (--detect)")
+    tracker = OnnxPointTracker(bundle, threads, provider)
+    images, paths = read_frames(frames)
+    start = read_points(points) if points is not None else good_features(images[0], detect)
+    writable_folder(Path(out).parent)
+    begin = time.perf_counter()
+    tracks, lost, psr = tracker.track(images, start)
+    seconds = time.perf_counter() - begin
+    result = {"tracks": tracks.astype(np.float64), "lost": lost, "psr": psr.astype(np.float64), "points": start}
+    write_npz(out, compress=False, method=np.array(tracker.method), frames=np.array([str(p) for p in paths]), **result)
+    n_frames, n_points = lost.shape
+    return (f"{tracker.method} (onnxruntime): {n_points} points through {n_frames} frames in {seconds:.1f} s "
+            f"({n_points * max(n_frames - 1, 1) / seconds:.0f} point-frames/s), {int(lost[-1].sum())} lost at the "
+            f"end; wrote {out}"), result
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = CommandParser(prog="runtime.tracking", description=__doc__,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_runtime_arguments(parser)
+    parser.add_argument("--frames", required=True, help="folder of frames (sorted by name) or a glob like 'clip/*.png'")
+    start = parser.add_mutually_exclusive_group(required=True)
+    start.add_argument("--points", help="start points: .npy/.npz (P, 2) or text 'x y' lines")
+    start.add_argument("--detect", type=int, help="detect this many good features to track in the first frame")
+    parser.add_argument("--out", type=Path, required=True, help="output .npz (tracks, lost, psr, points)")
+    args = parser.parse_args(argv)
+
+    def run() -> None:
+        print(track_files(args.bundle, args.frames, args.out, args.points, args.detect, args.threads, args.provider)[0])
+
+    return run_command("runtime.tracking", run)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

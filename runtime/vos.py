@@ -1,0 +1,278 @@
+"""FRTM video object segmentation (thesis ch. 5) from the exported graphs, torch-free.
+
+    python -m runtime.vos --bundle DIR --video DIR --mask FIRST.png --out DIR [--threads N]
+                          [--provider cpu|cuda|tensorrt|coreml]
+
+The host loop of ``models.vos.tracker.FRTMLoop`` in numpy: objects from the first-frame mask (or appearing in a
+later one), the first-frame augmentation (``core.first_frame_augment``, the same samples as the PyTorch tracker),
+per object a joint W_p/W_f fit (``init`` graph), the memory as numpy arrays (``insert`` graph per frame and
+object), W_f updates every ``update_every`` frames (``update`` graph, with its CG state), and per frame the
+``frame`` graph (backbone, target models, decoder) followed by the soft aggregation of the objects (thesis eq.
+5.3). Masks are written as palette PNGs named after the frames, all at once when every frame was segmented.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import time
+from collections import defaultdict
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from core.command import CommandParser, run_command
+from core.errors import InputError
+from core.files import writable_folder
+from core.first_frame_augment import first_frame_augment
+from runtime.area import area_resize
+from runtime.bundle import Bundle, add_runtime_arguments
+from runtime.vos_io import list_frames, read_frame, read_mask, write_mask
+
+#: Clamp of the per-object probabilities in the soft aggregation (``models.vos.merge``).
+EPS = 1e-7
+
+
+def merge_objects(logits: np.ndarray, ids: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Soft aggregation of per-object logits (N, H, W): labels (H, W) int64 in {0} + ids, and each object's
+    merged probability where it won (N, H, W) (its memory label)."""
+    p = np.clip(1 / (1 + np.exp(-logits)), EPS, 1 - EPS)
+    p0 = np.clip(np.prod(1 - p, axis=0, keepdims=True), EPS, 1 - EPS)
+    probs = np.concatenate([p0, p])
+    odds = np.log(probs) - np.log1p(-probs)
+    odds = np.exp(odds - odds.max(0, keepdims=True))
+    probs = odds / odds.sum(0, keepdims=True)
+    win = probs.argmax(0)
+    labels = np.array([0, *ids], np.int64)[win]
+    won = win[None] == np.arange(1, len(ids) + 1)[:, None, None]
+    return labels, (probs[1:] * won).astype(np.float32)
+
+
+def hinge_pixel_weights(labels: np.ndarray, fg_target: float, min_pixels: int) -> np.ndarray:
+    """FRTM's residual weights v = sqrt(w) of soft labels (..., H, W) (``models.vos.target_model``): a small
+    object carries ``fg_target`` of the weight, larger ones are left unweighted."""
+    fg = labels > 0.5
+    n_fg = fg.sum((-2, -1)).astype(np.float32)
+    a_f = n_fg / np.float32(labels.shape[-1] * labels.shape[-2])
+    a_f = np.where(n_fg < min_pixels, np.float32(fg_target), a_f)
+    t_f = np.maximum(a_f, np.float32(fg_target))
+    w_fg = t_f / np.maximum(a_f, 1e-12)
+    w_bg = np.where(a_f < 1, (1 - t_f) / np.maximum(1 - a_f, 1e-12), 1.0)
+    return np.sqrt(np.where(fg, w_fg[..., None, None], w_bg[..., None, None])).astype(np.float32)
+
+
+class OnnxFRTMTracker:
+    """FRTM on a VOS bundle; ``segment`` takes and yields numpy arrays like ``FRTMLoop.segment`` tensors.
+
+    Args:
+        bundle: the bundle folder; threads, provider: as ``runtime.session.Graph``.
+
+    Attributes:
+        timings: accumulated milliseconds of ``frame`` (the frame graph), ``update`` and ``init``.
+    """
+
+    def __init__(self, bundle: str | Path, threads: int | None = None, provider: str = "cpu") -> None:
+        self.bundle = Bundle(bundle, "vos", threads, provider)
+        self.settings = self.bundle.section("settings")
+        size = self.bundle.section("input")
+        self.min_size, self.max_size = int(size["min_size"]), int(size["max_size"])
+        self.graphs = {name: self.bundle.graph(name) for name in ("frame", "features", "init", "insert", "update")}
+        self.timings: dict[str, float] = defaultdict(float)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the current video."""
+        self.ids: list[int] = []
+        self.wp = self.wf = None
+        self.memory: list[np.ndarray] = []  # features, labels, pixel weights, weights, newest (one row per object)
+        self.cg_state: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self.frame = 0
+
+    def _tick(self, name: str, start: float) -> None:
+        self.timings[name] += (time.perf_counter() - start) * 1000
+
+    def _label_res(self, masks: np.ndarray) -> np.ndarray:
+        """(..., H, W) soft masks at the memory label resolution (area resize by ``label_stride``)."""
+        stride = int(self.settings["label_stride"])
+        if stride == 1:
+            return masks
+        h, w = masks.shape[-2:]
+        return area_resize(masks, (max(1, h // stride), max(1, w // stride)))
+
+    def _pixel_weights(self, labels: np.ndarray) -> np.ndarray:
+        if not self.settings["pixel_weighting"]:
+            return np.ones_like(labels)
+        return hinge_pixel_weights(labels, self.settings["fg_target"], self.settings["min_update_pixels"])
+
+    def add_objects(self, image: np.ndarray, labels: np.ndarray, ids: list[int]) -> None:
+        """Train target models for objects ``ids`` (masks ``labels == id`` in the (3, H, W) image in [0, 1])."""
+        start = time.perf_counter()
+        s = self.settings
+        samples = [first_frame_augment(image, (labels == obj).astype(np.float32), s["num_aug"],
+                                       s["seed"] + 7919 * i + obj) for i, obj in enumerate(ids)]
+        b, k = len(ids), s["num_aug"]
+        feats = self.graphs["features"](np.concatenate([im for im, _ in samples]))
+        x = feats.reshape(b, k, *feats.shape[1:])
+        y = self._label_res(np.stack([m for _, m in samples]))
+        v = self._pixel_weights(y)
+        gamma = np.ones((b, k), np.float32)
+        gamma[:, 0] = 2
+        gamma /= gamma.sum(1, keepdims=True)
+        fits = [self.graphs["init"](x[i : i + 1], y[i : i + 1], v[i : i + 1], gamma[i : i + 1]) for i in range(b)]
+        wp, wf = np.concatenate([f[0] for f in fits]), np.concatenate([f[1] for f in fits])
+        z = np.einsum("bcd,bkdhw->bkchw", wp, x, optimize=True).astype(np.float32)
+        weights = np.ones((b, k), np.float32)
+        weights[:, 0] = 2.0
+        memory = self._initial_memory(z, y, v, weights / weights.sum(1, keepdims=True))
+        if self.ids:
+            memory = [np.concatenate([a, c]) for a, c in zip(self.memory, memory, strict=True)]
+            wp, wf = np.concatenate([self.wp, wp]), np.concatenate([self.wf, wf])
+        self.ids += list(ids)
+        self.wp, self.wf, self.memory, self.cg_state = wp, wf, memory, None
+        self.optimize_filters()
+        self._tick("init", start)
+
+    def _initial_memory(self, z: np.ndarray, y: np.ndarray, v: np.ndarray, weights: np.ndarray) -> list[np.ndarray]:
+        """The memory of ``memory_size`` slots holding the K initial samples (``models.vos.memory.memory_init``)."""
+        capacity = int(self.settings["memory_size"])
+        b, k = z.shape[:2]
+        if capacity < k:
+            raise InputError(f"memory capacity {capacity} is smaller than the {k} initial samples")
+
+        def grow(a: np.ndarray) -> np.ndarray:
+            return np.concatenate([a, np.zeros((b, capacity - k, *a.shape[2:]), a.dtype)], 1)
+
+        return [grow(z), grow(y), grow(v), grow(weights), np.full(b, -1, np.int64)]
+
+    def optimize_filters(self) -> None:
+        """Re-optimise W_f of every object on its filled memory slots (one ``update`` graph call each)."""
+        n = max(2, int((self.memory[3] > 0).sum(1).max()))
+        if self.cg_state is None:
+            self.cg_state = (np.zeros_like(self.wf), np.ones(len(self.wf), np.float32), np.zeros_like(self.wf))
+        p, rho, r_prev = self.cg_state
+        rows = [self.graphs["update"](*(m[i : i + 1, :n] for m in self.memory[:4]), self.wf[i : i + 1],
+                                      p[i : i + 1], rho[i : i + 1], r_prev[i : i + 1]) for i in range(len(self.wf))]
+        wf, p, rho, r_prev = (np.concatenate(column) for column in zip(*rows, strict=True))
+        self.wf, self.cg_state = wf, (p, rho, r_prev)
+
+    def step(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Labels (H, W), merged soft masks (N, H, W) and projected features (N, C, h, w) of a frame (3, H, W)."""
+        start = time.perf_counter()
+        logits, z = self.graphs["frame"](image[None], self.wp, self.wf)
+        self._tick("frame", start)
+        labels, soft = merge_objects(logits, self.ids)
+        return labels, soft, z
+
+    def update(self, soft: np.ndarray, z: np.ndarray) -> None:
+        """Insert soft masks (N, H, W) and features into the memory; optimise W_f every ``update_every`` frames."""
+        start = time.perf_counter()
+        y = self._label_res(soft)
+        rows = [self.graphs["insert"](*(m[i : i + 1] for m in self.memory), z[i : i + 1], y[i : i + 1])
+                for i in range(len(self.ids))]
+        self.memory = [np.concatenate(column) for column in zip(*rows, strict=True)]
+        if self.frame % int(self.settings["update_every"]) == 0:
+            self.optimize_filters()
+        self._tick("update", start)
+
+    def _image(self, frame: np.ndarray, index: int) -> np.ndarray:
+        frame = np.asarray(frame)
+        if frame.ndim != 3 or frame.shape[0] != 3 or not all(self.min_size <= n <= self.max_size
+                                                              for n in frame.shape[1:]):
+            raise InputError(f"frame {index} is {frame.shape}: the bundle takes (3, H, W) RGB frames of "
+                             f"{self.min_size} to {self.max_size} px a side")
+        return frame.astype(np.float32) / np.float32(255) if frame.dtype == np.uint8 else frame.astype(np.float32)
+
+    def segment(self, frames: Iterable[np.ndarray], masks: dict[int, np.ndarray]) -> Iterator[np.ndarray]:
+        """Segment a video.
+
+        Args:
+            frames: (3, H, W) RGB frames, uint8 or float in [0, 1].
+            masks: ``{frame index: (H, W) label map}``; frame 0 must be present; objects whose id first appears in
+                a later map start there (their given mask overrides the prediction).
+
+        Yields:
+            (H, W) int64 label maps, one per frame.
+        """
+        if 0 not in masks:
+            raise InputError("the first frame has no mask")
+        self.reset()
+        for t, frame in enumerate(frames):
+            image = self._image(frame, t)
+            given = None if masks.get(t) is None else np.asarray(masks[t])
+            if given is not None and given.shape != image.shape[-2:]:
+                raise InputError(f"mask of frame {t} is {given.shape}, the frame {image.shape[-2:]}")
+            self.frame = t
+            new_ids = [] if given is None else [int(i) for i in np.unique(given) if i not in (0, 255)
+                                                 and i not in self.ids]
+            if t == 0 and not new_ids:
+                raise InputError("the first-frame mask is empty: it labels no object")
+            if self.ids:
+                labels, soft, z = self.step(image)
+                if new_ids:
+                    new = np.isin(given, new_ids)
+                    labels = np.where(new, given, labels).astype(np.int64)
+                    soft = soft * ~new
+                self.update(soft, z)
+            else:
+                labels = np.where(np.isin(given, new_ids), given, 0).astype(np.int64)
+            if new_ids:
+                self.add_objects(image, labels, new_ids)
+            yield labels
+
+
+def segment_folder(tracker: OnnxFRTMTracker, video: str | Path, mask_path: str | Path, out: str | Path
+                   ) -> tuple[int, float]:
+    """Segment the frames of ``video`` from the first-frame mask and write ``out/<frame>.png`` palette masks, all
+    moved into place only when every frame was segmented. Returns (frames, seconds)."""
+    frames = list_frames(video)
+    mask = read_mask(mask_path)
+    first = read_frame(frames[0])
+    if mask.shape != first.shape[1:]:
+        raise InputError(f"mask {mask_path} is {mask.shape} (H, W) but frame {frames[0]} is {first.shape[1:]}")
+    if not ((mask > 0) & (mask < 255)).any():
+        raise InputError(f"mask {mask_path} labels no object (it is empty)")
+    final = writable_folder(out)
+    staging = final.with_name(f".{final.name}.{os.getpid()}.partial")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    start = time.perf_counter()
+
+    def images() -> Iterator[np.ndarray]:
+        for i, path in enumerate(frames):
+            image = first if i == 0 else read_frame(path)
+            if image.shape != first.shape:
+                raise InputError(f"frame {path} is {image.shape[1:]} but the first frame is {first.shape[1:]}")
+            yield image
+
+    try:
+        for path, labels in zip(frames, tracker.segment(images(), {0: mask}), strict=True):
+            write_mask(staging / f"{path.stem}.png", labels)
+        seconds = time.perf_counter() - start
+        for png in sorted(staging.iterdir()):
+            os.replace(png, final / png.name)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return len(frames), seconds
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = CommandParser(prog="runtime.vos", description=__doc__,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_runtime_arguments(parser)
+    parser.add_argument("--video", type=Path, required=True, help="folder of frames (sorted by name)")
+    parser.add_argument("--mask", type=Path, required=True, help="first-frame mask PNG (palette ids or binary gray)")
+    parser.add_argument("--out", type=Path, required=True, help="output folder for the palette PNG masks")
+    args = parser.parse_args(argv)
+
+    def run() -> None:
+        tracker = OnnxFRTMTracker(args.bundle, args.threads, args.provider)
+        n, seconds = segment_folder(tracker, args.video, args.mask, args.out)
+        print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
+
+    return run_command("runtime.vos", run)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
