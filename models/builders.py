@@ -5,6 +5,7 @@ models here; the exported graphs run in the torch-free deployment runtime (``run
 
     finder = horizon_finder(ckpt="finder.ckpt")            # nn.Module: (B, 3, H, W) -> (B, 4)
     tracker = frtm_tracker(ckpt="frtm.ckpt", channels=64)  # FRTMTracker with changed settings
+    tracker = davos_tracker(ckpt="davos.ckpt", winner_takes_all=False)  # DAVOSTracker, an ablation switch
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from core.errors import InputError
 from models.checkpoint import load_system, newest_checkpoint
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 from models.horizon.segmenter import PanoramaSegmenter
+from models.vos.davos_lit import DAVOSSegmentation
+from models.vos.davos_tracker import DAVOSTracker
 from models.vos.lit import FRTMSegmentation
 from models.vos.tracker import FRTMTracker
 
@@ -83,6 +86,25 @@ def frtm_tracker(ckpt: Source, use_decoder: bool = True, **settings) -> FRTMTrac
     """An FRTM video object segmenter (thesis ch. 5): ``FRTMTracker`` on a checkpoint's networks with its tracker
     settings changed by ``settings`` (``FRTMSettings`` fields)."""
     return frtm_system(ckpt).make_tracker(use_decoder=use_decoder, **settings)
+
+
+def davos_system(ckpt: Source | None = None, config: Source | None = None, **hparams) -> DAVOSSegmentation:
+    """The DAVOS/LWL training system (thesis ch. 6) in eval mode: from a checkpoint, from the ``model`` section of
+    a train.py YAML config (untrained), or untrained from ``hparams``; untrained systems use torch's seed 0."""
+    if ckpt is not None and config is not None:
+        raise InputError("DAVOS system: give a checkpoint or a config, not both")
+    if ckpt is not None:
+        return load_system(DAVOSSegmentation, ckpt)
+    if config is not None:
+        hparams = {**_config_model_args(Path(config), DAVOSSegmentation), **hparams}
+    torch.manual_seed(0)
+    return DAVOSSegmentation(**hparams).eval()
+
+
+def davos_tracker(ckpt: Source, **settings) -> DAVOSTracker:
+    """A DAVOS (or LWL) video object segmenter (thesis ch. 6) on a checkpoint's networks, its tracker settings
+    changed by ``settings`` (``DAVOSSettings`` fields, e.g. the ablation ``winner_takes_all=False``)."""
+    return davos_system(ckpt).make_tracker(**settings)
 
 
 def _config_model_args(path: Path, system: type[nn.Module]) -> dict:
