@@ -1,23 +1,30 @@
-"""FRTM video object segmentation benchmark: the full method against its baselines, with DAVIS J&F.
+"""Video object segmentation benchmark: FRTM, LWL and DAVOS against their baselines, with DAVIS J&F.
 
-    python -m bench.vos [--ckpt CKPT] [--davis ROOT --split NAME --resolution 240p] [--synthetic]
-                        [--speed [--speed-config YAML ...]] [--onnx BUNDLE ...] [--max-frames N] [--json]
-                        [--plot FILE.png]
+    python -m bench.vos [--ckpt CKPT] [--davos-ckpt CKPT] [--lwl-ckpt CKPT] [--extra NAME=CKPT ...]
+                        [--davis ROOT --split NAME --resolution 240p [--composites twins|pastes]]
+                        [--synthetic | --lookalike] [--speed [--speed-config YAML ...]] [--onnx BUNDLE ...]
+                        [--max-frames N] [--json] [--plot FILE.png]
 
-Methods: ``frtm`` (target model + decoder), ``target_model_only`` (the upsampled target-model score
-thresholded at 0.5, same memory updates) and ``first_frame_copy`` (the first mask repeated). Each gets ``jf``,
-``j``, ``f`` (DAVIS protocol, means over objects; per object of each sequence under ``per_sequence``), ``fps``
-and milliseconds per frame per component (backbone, target_model, decoder, update, init; init is per video,
-spread over its frames). Synthetic videos take their size, objects per video, distractors and object scale
-from the checkpoint's data module (the configuration it was trained with; explicit options override), on the
-held-out ``test`` seeds. ``--speed`` adds FPS of the tracker at 240p and 480p (synthetic frames) for the
-checkpoint's system and, side by side in the same run, for the models of any ``--speed-config`` YAML files.
-Without ``--ckpt`` the system is built untrained from ``--backbone``/``--weights``/``--feature-layer``/
-``--feature-norm`` and the paper's tracker settings: with ``--weights imagenet`` the ``target_model_only``
-row measures the pretrained features alone (the decoder is random, so the ``frtm`` row means nothing then).
-``--onnx BUNDLE`` adds the deployment runtime (``runtime.vos``: the bundle's graphs in onnxruntime with
-``--threads`` threads, the host loop in numpy) as method ``onnx:<bundle folder name>``, in the J&F rows and, with
-``--speed``, in the speed table of the same run (a float32 and an int8 bundle side by side, for instance).
+Methods, side by side on the same videos: ``davos`` (thesis ch. 6: the meta-learnt target model with a
+distractor channel, ``--davos-ckpt``), ``davos_no_wta`` (the same network, distractors regenerated without
+winner-takes-all), ``lwl`` (no distractor channel, ``--lwl-ckpt``), any ``--extra`` DAVOS-family checkpoint
+(e.g. ``davos_hard_loss=CKPT``), ``frtm`` (thesis ch. 5: target model + decoder, ``--ckpt``),
+``target_model_only`` (FRTM's upsampled target-model score thresholded at 0.5, same memory updates) and
+``first_frame_copy`` (the first mask repeated). Each gets ``jf``, ``j``, ``f`` (DAVIS 2017 protocol: means over
+objects; per object of each sequence under ``per_sequence``), ``fps`` and milliseconds per frame per component
+(backbone, target_model, decoder, update, init; init is per video, spread over its frames).
+
+Videos: a DAVIS split (``--davis``), held-out multi-object composites of its sequences (``--composites``:
+``twins``, a copy of each sequence's own object; ``pastes``, two objects of the other sequences), held-out
+synthetic videos like the FRTM checkpoint's training data (``--synthetic``, the default) or synthetic look-alike
+videos (``--lookalike``: ``--objects`` labelled look-alikes and one unlabelled one). ``--speed`` adds FPS of the
+trackers at 240p and 480p (synthetic frames) for every model given and, side by side in the same run, for the
+models of any ``--speed-config`` YAML files. Without ``--ckpt`` the FRTM system is built untrained from
+``--backbone``/``--weights``/``--feature-layer``/``--feature-norm`` and the paper's tracker settings: with
+``--weights imagenet`` the ``target_model_only`` row measures the pretrained features alone (the decoder is
+random, so the ``frtm`` row means nothing then). ``--onnx BUNDLE`` adds the deployment runtime (``runtime.vos``:
+the bundle's graphs in onnxruntime with ``--threads`` threads, the host loop in numpy) as method
+``onnx:<bundle folder name>``, in the J&F rows and, with ``--speed``, in the speed table of the same run.
 Prints one JSON object with ``--json``, else a table.
 """
 
@@ -34,15 +41,18 @@ import torch
 
 from core.errors import InputError
 from core.threads import set_cpu_threads
+from data.vos.composite_datamodule import EVAL_SETS, held_out_composites, lookalike_videos
 from data.vos.davis import davis_sequences
-from models.builders import frtm_system
+from models.builders import davos_system, frtm_system
 from models.vos.inference import checkpoint_test_videos, synthetic_test_settings
 from models.vos.lit import FRTMSegmentation
 from models.vos.metrics import evaluate_sequence, summarize
 from models.vos.target_features import FEATURE_NORMS
 from models.vos.tracker import COMPONENTS
 
-METHODS = ("frtm", "target_model_only", "first_frame_copy")
+METHODS = ("davos", "davos_no_wta", "lwl", "frtm", "target_model_only", "first_frame_copy")
+#: Methods of the FRTM system (``--ckpt``, or untrained).
+FRTM_METHODS = ("frtm", "target_model_only")
 
 
 def onnx_tracker(bundle: str) -> Callable[[], object]:
@@ -52,21 +62,18 @@ def onnx_tracker(bundle: str) -> Callable[[], object]:
     return lambda: OnnxFRTMTracker(bundle, threads=torch.get_num_threads())
 
 
-def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, torch.Tensor, torch.Tensor]],
-               bundles: dict[str, str] | None = None) -> dict:
-    """Segment ``videos`` (name, frames uint8, labels) with ``method`` (one of ``METHODS`` or a name of
-    ``bundles``, ``onnx:<folder>`` -> bundle folder); J&F statistics, FPS and ms/frame."""
-    bundles = bundles or {}
+def run_method(make_tracker: Callable[[], object] | None, videos: list[tuple[str, torch.Tensor, torch.Tensor]]) -> dict:
+    """Segment ``videos`` (name, frames uint8, labels) with the trackers of ``make_tracker`` (None: the first mask
+    copied); J&F statistics, FPS and ms/frame."""
     per_seq, frames_total, seconds = {}, 0, 0.0
     timings = dict.fromkeys(COMPONENTS, 0.0)
     for name, frames, labels in videos:
         start = time.perf_counter()
-        if method == "first_frame_copy":
+        if make_tracker is None:
             pred = labels[:1].expand_as(labels).clone()
             pred[pred == 255] = 0
         else:
-            tracker = (onnx_tracker(bundles[method])() if method in bundles
-                       else model.make_tracker(use_decoder=method == "frtm"))
+            tracker = make_tracker()
             pred = torch.stack([torch.as_tensor(p) for p in tracker.segment(frames, {0: labels[0]})])
             for k, v in tracker.timings.items():
                 timings[k] = timings.get(k, 0.0) + v
@@ -75,7 +82,7 @@ def run_method(model: FRTMSegmentation, method: str, videos: list[tuple[str, tor
         per_seq[name] = evaluate_sequence(pred, labels)
     glob = summarize(per_seq)
     out = {"jf": glob["J&F-Mean"], "j": glob["J-Mean"], "f": glob["F-Mean"], "fps": frames_total / seconds}
-    if method != "first_frame_copy":
+    if make_tracker is not None:
         out["ms_per_frame"] = {k: v / frames_total for k, v in timings.items()}
     out["per_sequence"] = {name: {str(o): {"jf": s["J&F-Mean"], "j": s["J-Mean"], "f": s["F-Mean"]}
                                   for o, s in objects.items()} for name, objects in per_seq.items()}
@@ -118,12 +125,19 @@ def speed(models: dict[str, Callable[[], object]], n_frames: int = 24, repeats: 
 
 def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Tensor, torch.Tensor]]]:
     if args.davis:
-        videos = []
         names = args.sequences.split(",") if args.sequences else None
-        for seq in davis_sequences(args.davis, args.split, args.resolution, names):
-            frames, labels = seq.load(args.max_frames)
-            videos.append((seq.name, frames, labels))
-        return f"davis:{Path(args.davis).name}/{args.split}@{args.resolution}", videos
+        seqs = davis_sequences(args.davis, args.split, args.resolution, names)
+        where = f"{Path(args.davis).name}/{args.split}@{args.resolution}"
+        if args.composites:
+            return (f"composites:{args.composites} of davis:{where}",
+                    held_out_composites(seqs, args.composites, max_frames=args.max_frames))
+        return f"davis:{where}", [(seq.name, *seq.load(args.max_frames)) for seq in seqs]
+    if args.composites:
+        raise InputError("--composites are made from DAVIS sequences: give --davis too")
+    if args.lookalike:
+        h, w, n = args.height or 240, args.width or 427, args.objects or 3
+        return (f"lookalike:{args.videos}x{h}x{w} objects {n}",
+                lookalike_videos(args.videos, n_frames=args.max_frames or 40, height=h, width=w, n_objects=n))
     given = {"height": args.height, "width": args.width, "n_objects": args.objects,
              "n_distractors": args.distractors, "object_scale": args.object_scale}
     v = synthetic_test_settings(args.ckpt, **given)
@@ -147,10 +161,19 @@ def parse_tracker(items: list[str] | None) -> dict:
     return out
 
 
-def run(args: argparse.Namespace) -> dict:
-    methods = args.methods.split(",")
-    if any(m not in METHODS for m in methods):
-        raise InputError(f"--methods {args.methods!r} names a method that is not one of {', '.join(METHODS)}")
+def parse_extra(items: list[str] | None) -> dict[str, str]:
+    """``["davos_hard_loss=a.ckpt"]`` -> ``{"davos_hard_loss": "a.ckpt"}``."""
+    out = {}
+    for item in items or []:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path or name in METHODS:
+            raise InputError(f"--extra item {item!r} is not NAME=CKPT with a new method name")
+        out[name] = path
+    return out
+
+
+def frtm_model(args: argparse.Namespace) -> FRTMSegmentation:
+    """The FRTM system of ``--ckpt`` (its tracker settings overridden by ``--tracker``) or an untrained one."""
     tracker = parse_tracker(args.tracker)
     weights = None if args.weights in (None, "none") else args.weights
     untrained = {} if args.ckpt else {"backbone": args.backbone, "weights": weights, "tracker": tracker,
@@ -159,26 +182,71 @@ def run(args: argparse.Namespace) -> dict:
     model = frtm_system(args.ckpt, **untrained)
     if args.ckpt and tracker:  # the checkpoint's tracker settings, overridden
         model.hparams.tracker = {**(model.hparams.tracker or {}), **tracker}
-    h = model.hparams
-    result: dict = {"checkpoint": args.ckpt, "backbone": h.backbone, "weights": h.weights,
-                    "feature_layer": h.feature_layer, "feature_norm": h.feature_norm, "feature_scale": h.feature_scale,
-                    "tracker": h.tracker,
-                    "threads": torch.get_num_threads(), "methods": {}}
+    return model
+
+
+def trackers(args: argparse.Namespace, methods: list[str]) -> tuple[dict[str, Callable | None], dict]:
+    """Tracker factories of ``methods`` (None for ``first_frame_copy``) and a description of the models used."""
+    davos = parse_tracker(args.davos_tracker)
+    ckpts = {"davos": args.davos_ckpt, "davos_no_wta": args.davos_ckpt, "lwl": args.lwl_ckpt,
+             **parse_extra(args.extra)}
+    out: dict[str, Callable | None] = {}
+    info: dict = {"checkpoints": {}}
+    frtm = None
+    for method in methods:
+        if method == "first_frame_copy":
+            out[method] = None
+        elif method in FRTM_METHODS:
+            frtm = frtm or frtm_model(args)
+            out[method] = lambda use=method == "frtm", m=frtm: m.make_tracker(use_decoder=use)
+            info["checkpoints"][method] = args.ckpt
+        else:
+            if not ckpts.get(method):
+                flag = "--davos-ckpt" if method.startswith("davos") else "--lwl-ckpt"
+                raise InputError(f"method {method} needs a checkpoint ({flag}, or --extra {method}=CKPT)")
+            system = davos_system(ckpts[method])
+            settings = {**davos, **({"winner_takes_all": False} if method == "davos_no_wta" else {})}
+            system.tracker_settings(**settings)  # a bad setting fails before any video runs
+            out[method] = lambda m=system, kw=settings: m.make_tracker(**kw)
+            info["checkpoints"][method] = ckpts[method]
+    if frtm is not None:
+        h = frtm.hparams
+        info["frtm"] = {"backbone": h.backbone, "weights": h.weights, "feature_layer": h.feature_layer,
+                        "feature_norm": h.feature_norm, "feature_scale": h.feature_scale, "tracker": h.tracker}
+    return out, info
+
+
+def default_methods(args: argparse.Namespace) -> list[str]:
+    """Every method the given checkpoints allow (FRTM's always: untrained without ``--ckpt``)."""
+    methods = [m for m, given in (("davos", args.davos_ckpt), ("davos_no_wta", args.davos_ckpt),
+                                  ("lwl", args.lwl_ckpt)) if given]
+    return [*methods, *parse_extra(args.extra), "frtm", "target_model_only", "first_frame_copy"]
+
+
+def run(args: argparse.Namespace) -> dict:
+    extra = parse_extra(args.extra)
+    methods = args.methods.split(",") if args.methods else default_methods(args)
+    unknown = [m for m in methods if m not in METHODS and m not in extra]
+    if unknown:
+        raise InputError(f"--methods names {unknown}, not one of {', '.join([*METHODS, *extra])}")
+    factories, info = trackers(args, methods)
+    result: dict = {**info, "threads": torch.get_num_threads(), "methods": {}}
     bundles = {f"onnx:{Path(b).name}": b for b in args.onnx or []}
-    if args.davis or args.synthetic or not args.speed:
+    factories.update({name: onnx_tracker(b) for name, b in bundles.items()})
+    if args.davis or args.synthetic or args.lookalike or not args.speed:
         result["dataset"], videos = load_videos(args)
-        for method in [*methods, *bundles]:
-            result["methods"][method] = run_method(model, method, videos, bundles)
+        for method, make_tracker in factories.items():
+            result["methods"][method] = run_method(make_tracker, videos)
     if args.speed:
-        models = {"model": model.make_tracker,
-                  **{Path(c).stem: frtm_system(config=c).make_tracker for c in args.speed_config or []},
-                  **{name: onnx_tracker(b) for name, b in bundles.items()}}
+        models = {name: f for name, f in factories.items() if f is not None and name != "target_model_only"}
+        models.update({Path(c).stem: frtm_system(config=c).make_tracker for c in args.speed_config or []})
         result["speed"] = speed(models, args.speed_frames)
     return result
 
 
 def print_table(result: dict) -> None:
-    print(f"dataset {result.get('dataset', '-')}, checkpoint {result['checkpoint'] or 'none (untrained)'}")
+    ckpts = ", ".join(f"{m} {c or 'untrained'}" for m, c in result["checkpoints"].items())
+    print(f"dataset {result.get('dataset', '-')}; checkpoints: {ckpts or '-'}")
     print(f"{'method':<20}{'J&F':>7}{'J':>7}{'F':>7}{'FPS':>10}  ms/frame " + " ".join(COMPONENTS))
     for name, m in result["methods"].items():
         ms = " ".join(f"{m['ms_per_frame'][k]:.0f}" for k in COMPONENTS) if "ms_per_frame" in m else "-"
@@ -213,11 +281,22 @@ def plot(result: dict, path: str) -> None:
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--ckpt", help="FRTMSegmentation checkpoint (default: untrained networks)")
+    p.add_argument("--davos-ckpt", help="DAVOSSegmentation checkpoint with a distractor channel (methods davos, "
+                   "davos_no_wta)")
+    p.add_argument("--lwl-ckpt", help="DAVOSSegmentation checkpoint without a distractor channel (method lwl)")
+    p.add_argument("--extra", nargs="+", action="extend", metavar="NAME=CKPT",
+                   help="more DAVOSSegmentation checkpoints as methods NAME, e.g. davos_hard_loss=CKPT")
+    p.add_argument("--davos-tracker", nargs="+", metavar="KEY=JSON",
+                   help="tracker settings over the DAVOS-family checkpoints', e.g. update_iters=3 memory_size=16")
     p.add_argument("--davis", help="DAVIS root, e.g. ../shared/data/davis2016")
     p.add_argument("--split", default="val", help="ImageSets split name (default val)")
     p.add_argument("--resolution", default="480p", help="resolution folder (default 480p)")
     p.add_argument("--sequences", help="comma-separated subset of the split's sequences")
+    p.add_argument("--composites", choices=sorted(EVAL_SETS),
+                   help="with --davis: held-out multi-object composites of the sequences instead of the sequences")
     p.add_argument("--synthetic", action="store_true", help="held-out synthetic videos (the default dataset)")
+    p.add_argument("--lookalike", action="store_true",
+                   help="held-out synthetic look-alike videos (240x427, 3 labelled look-alikes, 40 frames by default)")
     p.add_argument("--videos", type=int, default=8, help="synthetic videos (default 8)")
     p.add_argument("--height", type=int, help="synthetic frame height (default: checkpoint's data, else 96)")
     p.add_argument("--width", type=int, help="synthetic frame width (default: checkpoint's data, else 160)")
@@ -238,7 +317,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="with --feature-norm fixed: divide the target-model features by this (default 1)")
     p.add_argument("--tracker", nargs="+", metavar="KEY=JSON",
                    help="tracker settings over the model's, e.g. channels=32 memory_size=20 'update_schedule=[5]'")
-    p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated subset of {','.join(METHODS)}")
+    p.add_argument("--methods", help=f"comma-separated subset of {','.join(METHODS)} and the --extra names (default: "
+                   "all the given checkpoints allow)")
     p.add_argument("--speed", action="store_true", help="measure FPS at 240p and 480p")
     p.add_argument("--speed-config", nargs="+", action="extend", metavar="YAML",
                    help="with --speed: also time the (untrained) models of these train.py configs, in the same run")
@@ -251,10 +331,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def plot_masks(model: FRTMSegmentation, video: tuple[str, torch.Tensor, torch.Tensor], path: str | Path,
-               columns: int = 6) -> None:
-    """Mask outlines of every method over ``columns`` frames of one video (one colour per object), ground truth
-    in the first row."""
+def plot_masks(factories: dict[str, Callable | None], video: tuple[str, torch.Tensor, torch.Tensor],
+               path: str | Path, columns: int = 6) -> None:
+    """Mask outlines of every method (name -> tracker factory, None for the first mask copied) over ``columns``
+    frames of one video (one colour per object), ground truth in the first row."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -262,12 +342,11 @@ def plot_masks(model: FRTMSegmentation, video: tuple[str, torch.Tensor, torch.Te
 
     name, frames, labels = video
     rows = {"ground truth": labels.clamp(0, 254)}
-    for method in METHODS:
-        if method == "first_frame_copy":
+    for method, make_tracker in factories.items():
+        if make_tracker is None:
             rows[method] = labels[:1].expand_as(labels).clamp(0, 254)
         else:
-            tracker = model.make_tracker(use_decoder=method == "frtm")
-            rows[method] = torch.stack(list(tracker.segment(frames, {0: labels[0]})))
+            rows[method] = torch.stack(list(make_tracker().segment(frames, {0: labels[0]})))
     times = torch.linspace(0, frames.shape[0] - 1, columns).round().long().tolist()
     ids = [k for k in labels[0].unique().tolist() if 0 < k < 255]
     outline = ["yellow", "cyan", "magenta", "orange"]
@@ -321,12 +400,15 @@ def demo(report_dir: Path | None = None, quick: bool = False, height: int = 96, 
     args = parse_args(["--videos", "2", "--max-frames", "8" if quick else "12", "--height", str(height), "--width",
                        str(width), "--objects", "2", "--distractors", "0", "--object-scale", "0.25", "0.45"])
     _, videos = load_videos(args)
-    result = {"dataset": f"synthetic:2x{height}x{width}", "checkpoint": "demo (in memory)",
-              "methods": {m: run_method(model.eval(), m, videos) for m in METHODS}}
+    model.eval()
+    factories = {"frtm": model.make_tracker, "target_model_only": lambda: model.make_tracker(use_decoder=False),
+                 "first_frame_copy": None}
+    result = {"dataset": f"synthetic:2x{height}x{width}", "checkpoints": dict.fromkeys(factories, "demo (in memory)"),
+              "methods": {m: run_method(f, videos) for m, f in factories.items()}}
     print_table(result)
     if report_dir is None:
         return []
-    plot_masks(model, videos[0], report_dir / "vos_masks.png")
+    plot_masks(factories, videos[0], report_dir / "vos_masks.png")
     plot(result, str(report_dir / "vos_speed.png"))
     return [("vos_masks.png", "FRTM on a held-out synthetic video: the first-frame mask is given; frtm (target model "
              "+ decoder), the target model alone and the first mask copied, over the frames"),

@@ -196,7 +196,8 @@ def random_pastes(
     return pastes
 
 
-def composite_video(gen: torch.Generator, host: int, videos: list[Video], kinds: list[str]) -> Video:
+def composite_video(gen: torch.Generator, host: int, videos: list[Video], kinds: list[str],
+                    min_pixels: int = 100) -> Video:
     """A whole composite video: ``random_pastes`` anchored at frame 0, drawn over every host frame."""
-    pastes = random_pastes(gen, host, videos, kinds)
+    pastes = random_pastes(gen, host, videos, kinds, min_pixels=min_pixels)
     return compose(videos[host], videos, pastes)

@@ -83,8 +83,8 @@ class SequenceTrainingSamples(Dataset):
     ) -> None:
         if not sequences:
             raise InputError("no training sequences")
-        if crop is not None and (len(crop) != 2 or min(crop) < 16):
-            raise InputError(f"crop must be (height, width) of at least 16 px, got {crop}")
+        if crop is not None and (len(crop) != 2 or min(crop) < 1):
+            raise InputError(f"crop must be (height, width) in pixels, got {crop}")
         self.crop = None if crop is None else (int(crop[0]), int(crop[1]))
         self.sequences = sequences
         self.n_samples = n_samples

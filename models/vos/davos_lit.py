@@ -27,10 +27,11 @@ class DAVOSSegmentation(VOSEvaluation):
 
     Args:
         backbone, weights, train_backbone, feature_layer, projection_channels, encoding_channels, distractors,
-            mdim, encoder_dims, reg: the networks (``DAVOSNet``).
+            mdim, encoder_dims, pass_labels, reg: the networks (``DAVOSNet``).
         train_init_iters: steepest-descent steps on the reference frame (LWL/DAVOS 5).
         train_refine_iters: steps after each test frame but the last (LWL 2, DAVOS 4).
-        loss: ``lovasz`` (the papers), ``bce`` or ``bce_iou`` for both terms; soft_loss: soft loss masking of the
+        loss: ``lovasz`` (the papers), ``bce`` or ``bce_iou`` for both terms; boundary_weight: extra BCE weight
+            near the contours (``models.vos.losses.segmentation_loss``); soft_loss: soft loss masking of the
             distractor term (False: the "hard loss" ablation).
         lr, weight_decay, lr_milestones, lr_gamma: Adam and MultiStepLR over epochs (papers: milestones 40, 0.2).
         tracker: ``DAVOSSettings`` fields for validation, test and inference.
@@ -48,10 +49,12 @@ class DAVOSSegmentation(VOSEvaluation):
         distractors: bool = True,
         mdim: int = 32,
         encoder_dims: tuple[int, int, int] = (16, 32, 64),
+        pass_labels: bool = False,
         reg: float = 0.01,
         train_init_iters: int = 5,
         train_refine_iters: int = 4,
         loss: str = "lovasz",
+        boundary_weight: float = 0.0,
         soft_loss: bool = True,
         lr: float = 1e-3,
         weight_decay: float = 0.0,
@@ -63,7 +66,8 @@ class DAVOSSegmentation(VOSEvaluation):
         super().__init__()
         self.save_hyperparameters()
         self.net = DAVOSNet(backbone, weights, train_backbone, feature_layer, projection_channels, encoding_channels,
-                            distractors, mdim=mdim, encoder_dims=encoder_dims, train_iters=train_init_iters, reg=reg)
+                            distractors, mdim=mdim, encoder_dims=encoder_dims, pass_labels=pass_labels,
+                            train_iters=train_init_iters, reg=reg)
         DAVOSSettings.from_dict(tracker or {})  # a bad setting fails here, not after training
 
     def tracker_settings(self, **overrides) -> DAVOSSettings:
@@ -98,7 +102,7 @@ class DAVOSSegmentation(VOSEvaluation):
             logits = net.decode(net.scores(tau, x[:, i + 1]), {k: v[:, i + 1] for k, v in feats.items()}, size)
             target = batch["test_masks"][:, i]
             losses.append(davos_loss(logits, target, batch["test_distractors"][:, i], batch["has_distractors"],
-                                     h.loss, h.soft_loss))
+                                     h.loss, h.soft_loss, boundary_weight=h.boundary_weight))
             with torch.no_grad():
                 pred, gt = logits[:, 0] > 0, target > 0.5
                 ious.append(((pred & gt).flatten(1).sum(1) / (pred | gt).flatten(1).sum(1).clamp_min(1)).mean())

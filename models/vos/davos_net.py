@@ -35,7 +35,8 @@ class DAVOSNet(nn.Module):
         distractors: two label channels [target, distractor] and two logits (DAVOS) or one (LWL).
         filter_size: k of the target-model filter (3).
         mdim: decoder width (64 in the papers).
-        encoder_dims: label-encoder widths.
+        encoder_dims: label-encoder widths; pass_labels: the encoding's first channels are the labels themselves
+            (``LabelEncoder``).
         train_iters: default steepest-descent steps; reg: initial lambda (0.01).
     """
 
@@ -51,6 +52,7 @@ class DAVOSNet(nn.Module):
         filter_size: int = 3,
         mdim: int = 32,
         encoder_dims: tuple[int, int, int] | list[int] = (16, 32, 64),
+        pass_labels: bool = False,
         train_iters: int = 5,
         reg: float = 0.01,
     ) -> None:
@@ -60,7 +62,7 @@ class DAVOSNet(nn.Module):
         self.projection = FeatureProjection(self.target_input.channels, projection_channels, filter_size)
         self.label_channels = 2 if distractors else 1
         self.label_encoder = LabelEncoder(self.label_channels, encoding_channels, self.target_input.stride,
-                                          encoder_dims)
+                                          encoder_dims, pass_labels)
         self.optimizer = LWLSteepestDescent(train_iters, reg)
         self.decoder = SegmentationDecoder(self.backbone.channels, mdim, score_channels=encoding_channels,
                                            out_channels=self.label_channels)

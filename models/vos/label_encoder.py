@@ -5,6 +5,12 @@ target model learns to predict and the spatial weights W(y) of its residual, at 
 Layout (LWL ``ResidualDS16SW``, without batch norm): 3x3 convolution with stride 2 and ReLU, 3x3 max pool with
 stride 2, residual blocks down to the stride, then E(y) = ReLU(3x3 conv) and W(y) = 3x3 conv whose weights
 start at 0 and bias at 1 (every residual weighs 1 before training).
+
+With ``pass_labels`` the first L of the K encoding channels are the labels themselves, area-averaged to the
+features' size, and only the other K - L are learnt. A learnt encoding starts as noise that the decoder cannot
+read yet, and LWL learns its way out of that over tens of thousands of steps; with the labels passed through,
+the target model predicts the (coarse) target and distractor masks from the first step, as FRTM's does, and
+the learnt channels add what the decoder finds useful.
 """
 
 from __future__ import annotations
@@ -39,23 +45,26 @@ class LabelEncoder(nn.Module):
         out_channels: K (LWL 16 at stride 16; DAVOS 32 at stride 8).
         stride: 8 or 16, the target-model features' stride.
         dims: widths of the stem and the residual stages.
+        pass_labels: the first L encoding channels are the area-averaged labels (K > L needed).
 
     Shapes:
         labels (N, L, H, W) in [0, 1], size (h, w) of the features -> E (N, K, h, w), W (N, K, h, w).
     """
 
     def __init__(self, in_channels: int = 2, out_channels: int = 16, stride: int = 8,
-                 dims: tuple[int, int, int] | list[int] = (16, 32, 64)) -> None:
+                 dims: tuple[int, int, int] | list[int] = (16, 32, 64), pass_labels: bool = False) -> None:
         super().__init__()
         if stride not in (8, 16):
             raise InputError(f"label encoder stride must be 8 or 16, got {stride}")
-        if in_channels < 1 or out_channels < 1:
-            raise InputError(f"label encoder channels must be >= 1, got {in_channels} -> {out_channels}")
+        if in_channels < 1 or out_channels < 1 or (pass_labels and out_channels <= in_channels):
+            raise InputError(f"label encoder channels must be >= 1 (more outputs than labels when passing them "
+                             f"through), got {in_channels} -> {out_channels}")
         d0, d1, d2 = dims
         self.in_channels = in_channels
+        self.pass_labels = pass_labels
         self.stem = nn.Sequential(nn.Conv2d(in_channels, d0, 3, 2, 1), nn.ReLU(inplace=True), nn.MaxPool2d(3, 2, 1))
         self.blocks = nn.Sequential(ResidualBlock(d0, d1, 2), ResidualBlock(d1, d2, 2 if stride == 16 else 1))
-        self.encoding = nn.Conv2d(d2, out_channels, 3, padding=1)
+        self.encoding = nn.Conv2d(d2, out_channels - (in_channels if pass_labels else 0), 3, padding=1)
         self.weighting = nn.Conv2d(d2, out_channels, 3, padding=1)
         nn.init.zeros_(self.weighting.weight)
         nn.init.ones_(self.weighting.bias)
@@ -66,4 +75,7 @@ class LabelEncoder(nn.Module):
         h = self.blocks(self.stem(labels))
         if h.shape[-2:] != tuple(size):  # backbones round odd sizes differently
             h = F.interpolate(h, size=size, mode="bilinear", align_corners=False)
-        return F.relu(self.encoding(h)), self.weighting(h)
+        encoding = F.relu(self.encoding(h))
+        if self.pass_labels:
+            encoding = torch.cat([F.interpolate(labels, size=size, mode="area"), encoding], 1)
+        return encoding, self.weighting(h)

@@ -1,23 +1,28 @@
-"""bench/vos.py: the first-frame-copy baseline and the JSON layout on a tiny synthetic video set, tracker
-overrides and the speed table."""
+"""bench/vos.py: the first-frame-copy baseline and the JSON layout on a tiny synthetic video set, the DAVOS family
+side by side with FRTM, tracker overrides, method checks and the speed table."""
 
 import pytest
 
-from bench.vos import parse_args, run_method
+from bench.vos import parse_args, run, run_method
+from core.errors import InputError
 from data.vos.datamodule import synthetic_videos
-from models.builders import frtm_system
+from models.builders import davos_system, frtm_system
 from models.vos.metrics import evaluate_sequence
+from tests.models.test_checkpoint import save_checkpoint
+
+TINY_DAVOS = {"backbone": "resnet18", "weights": None, "projection_channels": 8, "encoding_channels": 4, "mdim": 8,
+              "encoder_dims": (4, 8, 8), "tracker": {"init_iters": 2, "update_iters": 1, "memory_size": 4}}
 
 
 def test_first_frame_copy_and_target_model_only() -> None:
     videos = synthetic_videos("test", 1, n_frames=5, height=48, width=64, n_objects=2)
     _, _, labels = videos[0]
-    copy = run_method(None, "first_frame_copy", videos)
+    copy = run_method(None, videos)
     ref = evaluate_sequence(labels[:1].expand_as(labels), labels)
     assert abs(copy["jf"] - sum(o["J&F-Mean"] for o in ref.values()) / len(ref)) < 1e-12
     model = frtm_system(mdim=8, tracker={"channels": 8, "num_aug": 2, "memory_size": 6, "init_schedule": [2],
                                               "update_schedule": [2]})
-    tm = run_method(model, "target_model_only", videos)
+    tm = run_method(lambda: model.make_tracker(use_decoder=False), videos)
     assert set(tm) == {"jf", "j", "f", "fps", "ms_per_frame", "per_sequence"} and tm["fps"] > 0
     assert 0 <= tm["jf"] <= 1 and set(tm["per_sequence"][videos[0][0]]) == {"1", "2"}
     obj = tm["per_sequence"][videos[0][0]]["1"]
@@ -25,9 +30,27 @@ def test_first_frame_copy_and_target_model_only() -> None:
     assert parse_args(["--davis", "x", "--split", "val"]).resolution == "480p"
 
 
+def test_davos_family_runs_beside_frtm_on_lookalike_videos(tmp_path) -> None:
+    davos = save_checkpoint(davos_system(**TINY_DAVOS), tmp_path / "davos.ckpt")
+    lwl = save_checkpoint(davos_system(**TINY_DAVOS, distractors=False), tmp_path / "lwl.ckpt")
+    args = ["--davos-ckpt", str(davos), "--lwl-ckpt", str(lwl), "--extra", f"davos_again={davos}", "--lookalike",
+            "--videos", "1", "--max-frames", "4", "--height", "48", "--width", "64", "--objects", "2",
+            "--tracker", "channels=8", "num_aug=2", "memory_size=4", "init_schedule=[2]", "update_schedule=[2]"]
+    out = run(parse_args([*args, "--methods", "davos,davos_no_wta,lwl,davos_again,first_frame_copy"]))
+    assert list(out["methods"]) == ["davos", "davos_no_wta", "lwl", "davos_again", "first_frame_copy"]
+    assert out["dataset"].startswith("lookalike:1x48x64") and out["checkpoints"]["lwl"] == str(lwl)
+    for m in ("davos", "lwl"):
+        assert set(out["methods"][m]["per_sequence"]["synthetic-2000000"]) == {"1", "2"}
+        assert set(out["methods"][m]["ms_per_frame"]) >= {"backbone", "decoder", "update", "init"}
+    # the same network twice gives the same masks; the ablation switch changes the tracker only
+    assert out["methods"]["davos_again"]["jf"] == out["methods"]["davos"]["jf"]
+    # without --methods: every method the checkpoints allow
+    assert list(run(parse_args([*args, "--max-frames", "3"]))["methods"]) == [
+        "davos", "davos_no_wta", "lwl", "davos_again", "frtm", "target_model_only", "first_frame_copy"]
+
+
 def test_tracker_overrides_and_method_checks() -> None:
-    from bench.vos import parse_tracker, run
-    from core.errors import InputError
+    from bench.vos import parse_extra, parse_tracker
 
     assert parse_tracker(["channels=32", "update_schedule=[5, 5]", "label_stride=2"]) == {
         "channels": 32, "update_schedule": [5, 5], "label_stride": 2}
@@ -36,6 +59,12 @@ def test_tracker_overrides_and_method_checks() -> None:
             parse_tracker(bad)
     with pytest.raises(InputError, match="frtm2"):
         run(parse_args(["--methods", "frtm,frtm2"]))
+    with pytest.raises(InputError, match="needs a checkpoint"):
+        run(parse_args(["--methods", "davos"]))
+    with pytest.raises(InputError, match="NAME=CKPT"):
+        parse_extra(["frtm=x.ckpt"])
+    with pytest.raises(InputError, match="give --davis"):
+        run(parse_args(["--composites", "twins", "--methods", "first_frame_copy"]))
 
 
 @pytest.mark.slow
@@ -49,6 +78,8 @@ def test_untrained_pretrained_system_and_speed_side_by_side(tmp_path) -> None:
     config = tmp_path / "tiny.yaml"
     config.write_text("model:\n  class_path: models.vos.lit.FRTMSegmentation\n  init_args:\n    mdim: 8\n    tracker:"
                       " {channels: 8, num_aug: 2, memory_size: 4, init_schedule: [2], update_schedule: [2]}\n")
-    out = speed({"lite0": model, "r18": frtm_system(config=config)}, n_frames=3, repeats=1)
-    assert set(out) == {"lite0", "r18"} and set(out["lite0"]) == {"240p", "480p"}
+    davos = davos_system(**TINY_DAVOS)
+    out = speed({"lite0": model.make_tracker, "r18": frtm_system(config=config).make_tracker,
+                 "davos": davos.make_tracker}, n_frames=3, repeats=1)
+    assert set(out) == {"lite0", "r18", "davos"} and set(out["lite0"]) == {"240p", "480p"}
     assert all(out[m][r]["fps"] > 0 and out[m][r]["cpu_s_per_frame"] > 0 for m in out for r in out[m])

@@ -31,3 +31,33 @@ def test_hflip_mirrors_every_tensor_of_the_same_sample() -> None:
         a, b = kept[i], mirrored[i]
         for key in a:
             assert torch.equal(b[key], a[key].flip(-1)), key
+
+
+class TwoObjectSequence(FakeSequence):
+    """FakeSequence plus a second, static object; every other frame unannotated (-1), as YouTube-VOS."""
+
+    def load(self, max_frames=None):
+        frames, labels = super().load()
+        labels[:, 0:2, 12:16] = 2
+        labels[1::2] = -1
+        return frames, labels
+
+
+def test_distractors_are_the_other_annotated_objects_and_sparse_annotations_are_skipped() -> None:
+    ds = SequenceTrainingSamples([TwoObjectSequence()], 6, n_test_frames=2, max_gap=3, min_pixels=5, seed=2)
+    for i in range(6):
+        s = ds[i]
+        assert s["has_distractors"].item() and s["ref_distractor"].sum() > 0
+        assert (s["ref_mask"] * s["ref_distractor"]).sum() == 0  # target and distractor never overlap
+        assert (s["test_masks"] >= 0).all()  # unannotated frames (-1) are never picked
+    single = SequenceTrainingSamples([FakeSequence()], 1, min_pixels=10)[0]
+    assert not single["has_distractors"].item() and single["test_distractors"].sum() == 0
+
+
+def test_crop_is_one_window_around_the_target() -> None:
+    ds = SequenceTrainingSamples([FakeSequence()], 4, n_test_frames=2, max_gap=3, min_pixels=10, seed=1,
+                                 crop=(16, 12))
+    for i in range(4):
+        s = ds[i]  # the window is clipped to the 12-px-high frame
+        assert s["ref_image"].shape == (3, 12, 12) and s["test_masks"].shape == (2, 12, 12)
+        assert s["ref_mask"].sum() >= 18  # the target (6 px wide) stays mostly inside

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from core.errors import InputError
-from models.vos.losses import segmentation_loss, soft_iou_loss
+from models.vos.losses import lovasz_hinge, segmentation_loss, soft_iou_loss
 
 
 def _near_contour(t_img: list[list[float]], i: int, j: int, radius: int) -> bool:
@@ -73,3 +73,45 @@ def test_segmentation_loss_gradcheck(kind: str, pos_weight: float, boundary_weig
     assert torch.autograd.gradcheck(loss, (logits, target))  # the target is held (its band is piecewise constant)
     soft = torch.rand(2, 6, 7, generator=gen, dtype=torch.float64, requires_grad=True)
     assert torch.autograd.gradcheck(soft_iou_loss, (logits, soft))
+
+
+def _lovasz_integral(logits: list, target: list, keep: list) -> float:
+    """The Lovasz extension as the integral of the set function f(A) = |A| / |G u A| (Jaccard loss of the
+    mispredicted set A) over the level sets {i: e_i >= theta} of the hinge errors e, per image, averaged."""
+    total = 0.0
+    for x_img, t_img, k_img in zip(logits, target, keep, strict=True):
+        idx = [i for i, k in enumerate(k_img) if k]
+        fg = {i for i in idx if t_img[i] > 0.5}
+        err = {i: max(0.0, 1 - x_img[i] * (1 if i in fg else -1)) for i in idx}
+        levels = sorted(set(err.values()) | {0.0})
+        for low, high in zip(levels[:-1], levels[1:], strict=True):
+            a = {i for i in idx if err[i] >= high}
+            total += (high - low) * len(a) / len(fg | a)
+    return total / len(logits)
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_lovasz_hinge_equals_the_integral_of_the_jaccard_set_function(masked: bool) -> None:
+    gen = torch.Generator().manual_seed(2)
+    logits = 2 * torch.randn(4, 3, 5, generator=gen, dtype=torch.float64)
+    target = (torch.rand(4, 3, 5, generator=gen) > 0.6).double()
+    keep = torch.rand(4, 3, 5, generator=gen) > 0.3 if masked else torch.ones(4, 3, 5, dtype=torch.bool)
+    keep[3] = not masked  # a fully masked image counts 0
+    got = float(lovasz_hinge(logits, target, keep if masked else None))
+    want = _lovasz_integral(logits.flatten(1).tolist(), target.flatten(1).tolist(), keep.flatten(1).tolist())
+    assert got == pytest.approx(want, rel=1e-12)
+    assert float(segmentation_loss(logits, target, "lovasz", mask=keep if masked else None)) == pytest.approx(want)
+
+
+def test_lovasz_hinge_is_zero_for_confident_correct_logits_and_masked_bce_is_a_masked_mean() -> None:
+    target = torch.zeros(1, 4, 4)
+    target[0, 1:3, 1:3] = 1
+    assert float(lovasz_hinge(torch.where(target > 0, 2.0, -2.0), target)) == 0
+    logits = torch.randn(1, 4, 4, generator=torch.Generator().manual_seed(3))
+    mask = torch.zeros(1, 4, 4, dtype=torch.bool)
+    mask[0, :2] = True
+    full = torch.nn.functional.binary_cross_entropy_with_logits(logits, target, reduction="none")
+    got = segmentation_loss(logits, target, "bce", mask=mask)
+    torch.testing.assert_close(got, full[mask].mean())
+    with pytest.raises(InputError, match="loss mask"):
+        segmentation_loss(logits, target, "bce", mask=mask[:, :2])
