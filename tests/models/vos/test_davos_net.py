@@ -28,4 +28,5 @@ def test_shapes_and_frame_scores_equal_per_object_scores() -> None:
 def test_lwl_network_has_one_label_channel_and_one_logit() -> None:
     net = _net(distractors=False)
     feats, x = net.features(torch.rand(1, 3, 64, 96))
-    assert net.label_channels == 1 and net.decode(net.scores(net.initial_filter(1, x), x), feats, (64, 96)).shape[1] == 1
+    logits = net.decode(net.scores(net.initial_filter(1, x), x), feats, (64, 96))
+    assert net.label_channels == 1 and logits.shape[1] == 1
