@@ -17,7 +17,7 @@ from torch import nn
 
 from core.cylinder import LevelPanorama
 from core.errors import InputError
-from models.checkpoint import load_system, newest_checkpoint
+from models.checkpoint import load_system, newest_checkpoint, read_checkpoint
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 from models.horizon.segmenter import PanoramaSegmenter
 from models.vos.davos_lit import DAVOSSegmentation
@@ -105,6 +105,14 @@ def davos_tracker(ckpt: Source, **settings) -> DAVOSTracker:
     """A DAVOS (or LWL) video object segmenter (thesis ch. 6) on a checkpoint's networks, its tracker settings
     changed by ``settings`` (``DAVOSSettings`` fields, e.g. the ablation ``winner_takes_all=False``)."""
     return davos_system(ckpt).make_tracker(**settings)
+
+
+def vos_tracker(ckpt: Source) -> FRTMTracker | DAVOSTracker:
+    """The tracker of a VOS checkpoint, FRTM or DAVOS/LWL, by the system class the checkpoint was trained as."""
+    stored = read_checkpoint(ckpt, "VOS checkpoint").get("hyper_parameters", {}).get("_class_path", "")
+    if stored.endswith(DAVOSSegmentation.__name__):
+        return davos_tracker(ckpt)
+    return frtm_tracker(ckpt)
 
 
 def _config_model_args(path: Path, system: type[nn.Module]) -> dict:

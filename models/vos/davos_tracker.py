@@ -49,6 +49,15 @@ class DAVOSTracker(nn.Module, VideoLoop):
         self.memory: Memory | None = None
         self.distractors: torch.Tensor | None = None
 
+    def distractor_maps(self, size: tuple[int, int]) -> torch.Tensor | None:
+        """The distractor maps (N, H, W) regenerated at the last frame (zeros at the first), None for LWL."""
+        if self.net.label_channels == 1:
+            return None
+        maps = torch.zeros(len(self.ids), *size)
+        if self.distractors is not None:  # objects added at this frame have none yet
+            maps[: self.distractors.shape[0]] = self.distractors.cpu()
+        return maps
+
     def _labels(self, target: torch.Tensor, distractor: torch.Tensor) -> torch.Tensor:
         """Label channels (N, L, H, W) of the network from target and distractor maps (N, H, W)."""
         if self.net.label_channels == 1:

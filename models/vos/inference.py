@@ -1,5 +1,5 @@
-"""Running FRTM on folders of frames and on DAVIS splits (used by ``infer.py segment``): input checks, palette
-PNG output, overlay videos and J&F scoring."""
+"""Running the VOS trackers (FRTM, LWL, DAVOS) on folders of frames and on DAVIS splits (used by ``infer.py
+segment``): input checks, palette PNG output, overlay videos and J&F scoring."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from data.vos.davis import davis_sequences
 from data.vos.io import davis_palette, list_frames, read_frame, read_mask, write_mask
 from models.checkpoint import datamodule_settings
 from models.vos.metrics import evaluate_sequence, write_csv
-from models.vos.tracker import FRTMLoop
+from models.vos.video_loop import VideoLoop
 
 #: Synthetic video settings when a checkpoint stores no data module: key -> (data-module name, default).
 SYNTHETIC_DEFAULTS = {"height": ("height", 96), "width": ("width", 160), "n_objects": ("eval_objects", 2),
@@ -63,24 +63,57 @@ def check_first_frame(frames: list[Path], mask_path: str | Path) -> torch.Tensor
     return mask
 
 
-def _overlay(image: torch.Tensor, labels: torch.Tensor, palette: np.ndarray) -> np.ndarray:
+def _overlay(image: torch.Tensor, labels: torch.Tensor, palette: np.ndarray, ids: list[int],
+             distractors: torch.Tensor | None = None) -> np.ndarray:
+    """BGR overlay frame: the objects in their palette colours; with DAVOS distractor maps (N, H, W) a second
+    panel beside it tints each object's regenerated distractor map (what its target model must not take for it)
+    in that object's colour."""
     rgb = image.permute(1, 2, 0).numpy().astype(np.float32)
     colour = palette[labels.numpy().clip(0, 255)]
     alpha = (labels.numpy() > 0)[..., None] * 0.5
-    return cv2.cvtColor((rgb * (1 - alpha) + colour * alpha).astype(np.uint8), cv2.COLOR_RGB2BGR)
+    panel = rgb * (1 - alpha) + colour * alpha
+    if distractors is not None:
+        tinted = rgb * 0.5
+        for obj, p in zip(ids, distractors.float().cpu().numpy(), strict=True):
+            a = 0.7 * p[..., None]
+            tinted = tinted * (1 - a) + palette[obj] * a
+        panel = np.concatenate([panel, tinted], 1)
+    return cv2.cvtColor(panel.clip(0, 255).astype(np.uint8), cv2.COLOR_RGB2BGR)
+
+
+def later_masks(frames: list[Path], annotations: str | Path, first: torch.Tensor) -> dict[int, torch.Tensor]:
+    """``{frame index: label map}`` of the annotation PNGs in folder ``annotations`` named after frames (besides
+    the first): objects whose id is new there start at that frame (YouTube-VOS style); each map must match the
+    first mask's size, and a PNG named after no frame is an ``InputError``."""
+    folder = Path(annotations)
+    if not folder.is_dir():
+        raise InputError(f"annotation folder {folder} does not exist")
+    index = {p.stem: t for t, p in enumerate(frames)}
+    masks = {}
+    for png in sorted(folder.glob("*.png")):
+        if png.stem not in index:
+            raise InputError(f"annotation {png} is named after no frame of the video")
+        mask = read_mask(png)
+        if mask.shape != first.shape:
+            raise InputError(f"annotation {png} is {tuple(mask.shape)} but the first mask is {tuple(first.shape)}")
+        if index[png.stem] > 0:
+            masks[index[png.stem]] = mask
+    return masks
 
 
 def segment_folder(
-    tracker: FRTMLoop, video: str | Path, mask_path: str | Path, out: str | Path, overlay: str | None = None,
-    fps: float = 24.0,
+    tracker: VideoLoop, video: str | Path, mask_path: str | Path, out: str | Path, overlay: str | None = None,
+    fps: float = 24.0, annotations: str | Path | None = None,
 ) -> tuple[int, float]:
     """Segment the frames of ``video`` from the first-frame mask; write ``out/<frame>.png`` palette masks and
-    optionally an overlay video. Returns (frames, seconds).
+    optionally an overlay video (twice as wide for DAVOS: the regenerated distractor maps beside the masks).
+    Objects that appear later are given by ``annotations`` (``later_masks``). Returns (frames, seconds).
 
     The masks (and the video) are written under hidden temporary names and moved into place when every frame
     was segmented, so a bad frame half-way leaves no masks behind."""
     frames = list_frames(video)
     mask = check_first_frame(frames, mask_path)
+    masks = {0: mask, **(later_masks(frames, annotations, mask) if annotations is not None else {})}
     final = writable_folder(out)
     staging = final.with_name(f".{final.name}.partial")
     shutil.rmtree(staging, ignore_errors=True)
@@ -92,13 +125,14 @@ def segment_folder(
     start = time.perf_counter()
     images = (read_frame(p) for p in frames)
     try:
-        for path, (image, labels) in zip(frames, _with_images(tracker, images, mask), strict=True):
+        for path, (image, labels) in zip(frames, _with_images(tracker, images, masks), strict=True):
             write_mask(staging / f"{path.stem}.png", labels.to(torch.uint8))
             if video_tmp is not None:
+                frame = _overlay(image, labels, palette, tracker.ids, tracker.distractor_maps(labels.shape))
                 if writer is None:
                     writer = cv2.VideoWriter(str(video_tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps,
-                                             (image.shape[-1], image.shape[-2]))
-                writer.write(_overlay(image, labels, palette))
+                                             (frame.shape[1], frame.shape[0]))
+                writer.write(frame)
         if writer is not None:
             writer.release()
             writer = None
@@ -114,9 +148,9 @@ def segment_folder(
     return len(frames), time.perf_counter() - start
 
 
-def _with_images(tracker: FRTMLoop, images, mask: torch.Tensor):
+def _with_images(tracker: VideoLoop, images, masks: dict[int, torch.Tensor]):
     """Yield (image, labels) pairs while the tracker consumes the same frames; checks frame sizes."""
-    size = mask.shape
+    size = masks[0].shape
     kept: list[torch.Tensor] = []
 
     def frames():
@@ -126,7 +160,7 @@ def _with_images(tracker: FRTMLoop, images, mask: torch.Tensor):
             kept.append(image)
             yield image
 
-    for labels in tracker.segment(frames(), {0: mask}):
+    for labels in tracker.segment(frames(), masks):
         yield kept.pop(0), labels
 
 
@@ -137,7 +171,7 @@ JOB_FILE = "segment_job.json"
 
 
 def segment_davis(
-    tracker: FRTMLoop, root: str | Path, split: str, resolution: str, out: str | Path,
+    tracker: VideoLoop, root: str | Path, split: str, resolution: str, out: str | Path,
     max_frames: int | None = None, job: dict | None = None,
 ) -> tuple[dict[str, float], float]:
     """Segment every sequence of a DAVIS split, write palette PNGs under ``out/<sequence>/`` and the

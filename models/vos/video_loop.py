@@ -51,6 +51,10 @@ class VideoLoop(ABC):
     def update(self, memory_labels: torch.Tensor, features: torch.Tensor) -> None:
         """Feed one frame's memory labels (zero where new objects start) and features to the objects' memories."""
 
+    def distractor_maps(self, size: tuple[int, int]) -> torch.Tensor | None:
+        """Per-object distractor maps (N, H, W) of the last frame, for overlays; None for trackers without."""
+        return None
+
     @torch.inference_mode()
     def segment(
         self, frames: Iterable[torch.Tensor], masks: dict[int, torch.Tensor]

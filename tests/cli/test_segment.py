@@ -106,3 +106,49 @@ def test_davis_output_of_another_run_is_refused(video: Path, davis: Path, tmp_pa
                        "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "holds masks of another segmentation run" in err[0]
+
+
+@pytest.fixture(scope="module")
+def davos_ckpt(tmp_path_factory) -> Path:
+    from models.builders import davos_system
+
+    path = tmp_path_factory.mktemp("davos") / "davos.ckpt"
+    system = davos_system(backbone="resnet18", weights=None, projection_channels=8, encoding_channels=4, mdim=8,
+                          encoder_dims=(4, 8, 8), tracker={"init_iters": 2, "update_iters": 1, "memory_size": 4})
+    return save_checkpoint(system, path)
+
+
+def test_davos_checkpoint_segments_ids_that_skip_numbers_and_objects_that_come_later(
+        video: Path, davos_ckpt: Path, tmp_path: Path) -> None:
+    import cv2
+
+    first = read_mask(video / "first.png")
+    skipping = torch.where(first == 2, 3, first)  # ids 1 and 3: tracked and written as 1 and 3
+    write_mask(tmp_path / "first.png", torch.where(skipping == 3, 0, skipping))
+    (tmp_path / "later").mkdir()
+    write_mask(tmp_path / "later" / "00002.png", skipping)  # object 3 starts at frame 2
+    code = infer.main(["segment", "--video", str(video / "frames"), "--mask", str(tmp_path / "first.png"),
+                       "--annotations", str(tmp_path / "later"), "--ckpt", str(davos_ckpt), "--out",
+                       str(tmp_path / "out"), "--overlay", str(tmp_path / "overlay.mp4")])
+    assert code == 0
+    masks = [read_mask(p) for p in sorted((tmp_path / "out").glob("*.png"))]
+    assert set(masks[0].unique().tolist()) <= {0, 1} and 3 not in masks[1].unique().tolist()
+    assert torch.equal(masks[2][skipping == 3], skipping[skipping == 3])  # the later mask is taken as given
+    assert set(torch.cat([m.unique() for m in masks]).tolist()) <= {0, 1, 3}
+    overlay = cv2.VideoCapture(str(tmp_path / "overlay.mp4"))
+    assert overlay.get(cv2.CAP_PROP_FRAME_WIDTH) == 2 * 64  # masks and distractor maps side by side
+    # a gray (DAVIS 2016) mask is object 1
+    Image.fromarray(((first > 0).numpy() * 255).astype(np.uint8), mode="L").save(tmp_path / "gray.png")
+    assert infer.main(["segment", "--video", str(video / "frames"), "--mask", str(tmp_path / "gray.png"), "--ckpt",
+                       str(davos_ckpt), "--out", str(tmp_path / "gray")]) == 0
+    assert set(read_mask(tmp_path / "gray" / "00003.png").unique().tolist()) <= {0, 1}
+
+
+def test_annotations_named_after_no_frame_are_refused(video: Path, davos_ckpt: Path, tmp_path: Path, capsys) -> None:
+    (tmp_path / "later").mkdir()
+    write_mask(tmp_path / "later" / "frame9.png", read_mask(video / "first.png"))
+    code = infer.main(["segment", "--video", str(video / "frames"), "--mask", str(video / "first.png"),
+                       "--annotations", str(tmp_path / "later"), "--ckpt", str(davos_ckpt), "--out",
+                       str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "named after no frame" in err[0] and not (tmp_path / "o").exists()
