@@ -33,10 +33,11 @@ TASK_GRAPHS = {
     "tracking": ("init", "step"),
     "horizon": ("finder", "level", "segmenter", "matcher"),
     "vos": ("frame", "features", "init", "insert", "update"),
+    "davos": ("features", "frame", "encode", "insert", "fit_init", "fit_update"),
 }
 #: The command that writes each task's bundle (named in error messages).
 EXPORT_COMMANDS = {"triangulation": "export.triangulation", "tracking": "export.tracking_onnx",
-                   "horizon": "export.horizon_onnx", "vos": "export.vos_onnx"}
+                   "horizon": "export.horizon_onnx", "vos": "export.vos_onnx", "davos": "export.davos_onnx"}
 
 
 def file_sha256(path: str | Path) -> str:

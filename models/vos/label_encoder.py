@@ -48,7 +48,9 @@ class LabelEncoder(nn.Module):
         pass_labels: the first L encoding channels are the area-averaged labels (K > L needed).
 
     Shapes:
-        labels (N, L, H, W) in [0, 1], size (h, w) of the features -> E (N, K, h, w), W (N, K, h, w).
+        labels (N, L, H, W) in [0, 1], size (h, w) of the features -> E (N, K, h, w), W (N, K, h, w); without a
+        size the output keeps the encoder's own size, ceil(H / stride) x ceil(W / stride), which is the stage size
+        of the ResNet and EfficientNet-Lite backbones.
     """
 
     def __init__(self, in_channels: int = 2, out_channels: int = 16, stride: int = 8,
@@ -69,13 +71,13 @@ class LabelEncoder(nn.Module):
         nn.init.zeros_(self.weighting.weight)
         nn.init.ones_(self.weighting.bias)
 
-    def forward(self, labels: torch.Tensor, size: tuple[int, int]) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, labels: torch.Tensor, size: tuple[int, int] | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         if labels.ndim != 4 or labels.shape[1] != self.in_channels:
             raise InputError(f"labels must be (N, {self.in_channels}, H, W), got {tuple(labels.shape)}")
         h = self.blocks(self.stem(labels))
-        if h.shape[-2:] != tuple(size):  # backbones round odd sizes differently
+        if size is not None and h.shape[-2:] != tuple(size):  # backbones that round odd sizes differently
             h = F.interpolate(h, size=size, mode="bilinear", align_corners=False)
         encoding = F.relu(self.encoding(h))
         if self.pass_labels:
-            encoding = torch.cat([F.interpolate(labels, size=size, mode="area"), encoding], 1)
+            encoding = torch.cat([F.interpolate(labels, size=h.shape[-2:], mode="area"), encoding], 1)
         return encoding, self.weighting(h)

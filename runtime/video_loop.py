@@ -1,0 +1,126 @@
+"""The frame loop of the runtime's VOS trackers, in numpy (``models.vos.video_loop.VideoLoop`` without torch):
+objects from the first-frame label map or appearing in a later one, one ``step`` per frame, an ``update`` that
+feeds the result back, and writing a video's masks as palette PNGs."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import InputError
+from core.files import writable_folder
+from runtime.vos_io import list_frames, read_frame, read_mask, write_mask
+
+
+class NumpyVideoLoop(ABC):
+    """Host side of a bundle's tracker. Subclasses set ``min_size`` / ``max_size`` (frame sides the graphs take)
+    and implement ``add_objects``, ``step`` and ``update``; ``reset`` must call ``super().reset()``."""
+
+    min_size: int
+    max_size: int
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the current video."""
+        self.ids: list[int] = []
+        self.frame = 0
+
+    @abstractmethod
+    def add_objects(self, image: np.ndarray, labels: np.ndarray, ids: list[int]) -> None:
+        """Start tracking objects ``ids`` (masks ``labels == id``) in the (3, H, W) image in [0, 1]."""
+
+    @abstractmethod
+    def step(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Labels (H, W), per-object memory labels (N, ..., H, W) and features of one frame."""
+
+    @abstractmethod
+    def update(self, memory_labels: np.ndarray, features: np.ndarray) -> None:
+        """Feed one frame's memory labels (zero where new objects start) and features to the memories."""
+
+    def _image(self, frame: np.ndarray, index: int) -> np.ndarray:
+        frame = np.asarray(frame)
+        if frame.ndim != 3 or frame.shape[0] != 3 or not all(self.min_size <= n <= self.max_size
+                                                              for n in frame.shape[1:]):
+            raise InputError(f"frame {index} is {frame.shape}: the bundle takes (3, H, W) RGB frames of "
+                             f"{self.min_size} to {self.max_size} px a side")
+        return frame.astype(np.float32) / np.float32(255) if frame.dtype == np.uint8 else frame.astype(np.float32)
+
+    def segment(self, frames: Iterable[np.ndarray], masks: dict[int, np.ndarray]) -> Iterator[np.ndarray]:
+        """Segment a video.
+
+        Args:
+            frames: (3, H, W) RGB frames, uint8 or float in [0, 1].
+            masks: ``{frame index: (H, W) label map}``; frame 0 must be present; objects whose id first appears in
+                a later map start there (their given mask overrides the prediction).
+
+        Yields:
+            (H, W) int64 label maps, one per frame.
+        """
+        if 0 not in masks:
+            raise InputError("the first frame has no mask")
+        self.reset()
+        for t, frame in enumerate(frames):
+            image = self._image(frame, t)
+            given = None if masks.get(t) is None else np.asarray(masks[t])
+            if given is not None and given.shape != image.shape[-2:]:
+                raise InputError(f"mask of frame {t} is {given.shape}, the frame {image.shape[-2:]}")
+            self.frame = t
+            new_ids = [] if given is None else [int(i) for i in np.unique(given) if i not in (0, 255)
+                                                 and i not in self.ids]
+            if t == 0 and not new_ids:
+                raise InputError("the first-frame mask is empty: it labels no object")
+            if self.ids:
+                labels, memory_labels, features = self.step(image)
+                if new_ids:
+                    new = np.isin(given, new_ids)
+                    labels = np.where(new, given, labels).astype(np.int64)
+                    memory_labels = memory_labels * ~new
+                self.update(memory_labels, features)
+            else:
+                labels = np.where(np.isin(given, new_ids), given, 0).astype(np.int64)
+            if new_ids:
+                self.add_objects(image, labels, new_ids)
+            yield labels
+
+
+def segment_folder(tracker: NumpyVideoLoop, video: str | Path, mask_path: str | Path, out: str | Path
+                   ) -> tuple[int, float]:
+    """Segment the frames of ``video`` from the first-frame mask and write ``out/<frame>.png`` palette masks, all
+    moved into place only when every frame was segmented. Returns (frames, seconds)."""
+    frames = list_frames(video)
+    mask = read_mask(mask_path)
+    first = read_frame(frames[0])
+    if mask.shape != first.shape[1:]:
+        raise InputError(f"mask {mask_path} is {mask.shape} (H, W) but frame {frames[0]} is {first.shape[1:]}")
+    if not ((mask > 0) & (mask < 255)).any():
+        raise InputError(f"mask {mask_path} labels no object (it is empty)")
+    final = writable_folder(out)
+    staging = final.with_name(f".{final.name}.{os.getpid()}.partial")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    start = time.perf_counter()
+
+    def images() -> Iterator[np.ndarray]:
+        for i, path in enumerate(frames):
+            image = first if i == 0 else read_frame(path)
+            if image.shape != first.shape:
+                raise InputError(f"frame {path} is {image.shape[1:]} but the first frame is {first.shape[1:]}")
+            yield image
+
+    try:
+        for path, labels in zip(frames, tracker.segment(images(), {0: mask}), strict=True):
+            write_mask(staging / f"{path.stem}.png", labels)
+        seconds = time.perf_counter() - start
+        for png in sorted(staging.iterdir()):
+            os.replace(png, final / png.name)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return len(frames), seconds
