@@ -31,9 +31,9 @@ EPS = 1e-7
 def soft_aggregate(logits: np.ndarray) -> np.ndarray:
     """Merged probabilities (N + 1, H, W), background first, of per-object logits (N, H, W): p_0 = prod(1 - p_i),
     then a softmax of the log-odds (``models.vos.merge.soft_aggregate``)."""
-    p = np.clip(1 / (1 + np.exp(-logits.astype(np.float64))), EPS, 1 - EPS)
-    p0 = np.clip(np.prod(1 - p, axis=0, keepdims=True), EPS, 1 - EPS)
-    probs = np.concatenate([p0, p])
+    p = np.clip(1 / (1 + np.exp(-logits.astype(np.float32))), np.float32(EPS), np.float32(1 - EPS))
+    p0 = np.clip(np.prod(1 - p, axis=0, keepdims=True), np.float32(EPS), np.float32(1 - EPS))
+    probs = np.concatenate([p0, p])  # float32 throughout, as PyTorch computes it
     odds = np.log(probs) - np.log1p(-probs)
     odds = np.exp(odds - odds.max(0, keepdims=True))
     return (odds / odds.sum(0, keepdims=True)).astype(np.float32)
@@ -135,7 +135,7 @@ class OnnxDAVOSTracker(NumpyVideoLoop):
         labels = np.array([0, *self.ids], np.int64)[merged.argmax(0)]
         distractor = np.zeros_like(merged[1:])
         if self.label_channels == 2:
-            p = (1 / (1 + np.exp(-logits[:, 0].astype(np.float64)))).astype(np.float32)
+            p = 1 / (1 + np.exp(-logits[:, 0].astype(np.float32)))
             distractor = regenerate_distractors(p, labels, self.ids, self.settings["winner_takes_all"])
             self.distractors = distractor
         return labels, self._labels(merged[1:], distractor), x
