@@ -1,5 +1,6 @@
 # dcfvision: `make demo` runs the demo, `make test` runs ruff and the tests.
-# Both create .venv on first use and reuse it while pyproject.toml is unchanged.
+# Both create .venv on first use (the full install: .[train,dev,bench]) and reuse it while pyproject.toml is
+# unchanged. The torch-free deployment runtime alone is `pip install '.[runtime]'` (docs/deployment.md).
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -12,7 +13,7 @@ venv: $(STAMP)
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet ".[dev,bench]"
+	$(PY) -m pip install --quiet ".[train,dev,bench]"
 	touch $(STAMP)
 
 # make demo [ONLY="vos localization"] [QUICK=1]: every part (or some), full size (or the one-minute smoke run).

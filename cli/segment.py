@@ -47,9 +47,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--overlay and --annotations need --ckpt (the runtime tracks the first mask's objects)")
     if args.davis is None:
         if args.onnx:
-            from runtime import vos
+            from runtime.video_loop import segment_folder as runtime_segment_folder
 
-            n, seconds = vos.segment_folder(OnnxFRTMTracker(args.onnx), args.video, args.mask, args.out)
+            n, seconds = runtime_segment_folder(OnnxFRTMTracker(args.onnx), args.video, args.mask, args.out)
             print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
             return 0
         from data.vos.io import list_frames

@@ -20,7 +20,10 @@ def staged_bundle(out: str | Path) -> Iterator[Path]:
     """Yield an empty staging folder; on leaving the block it becomes ``out`` (an existing bundle there is
     replaced). ``out`` must be new, empty or a bundle: any other folder is an ``InputError``."""
     final = Path(out)
-    writable_folder(final.parent)
+    try:
+        writable_folder(final.parent)
+    except InputError as err:
+        raise InputError(f"cannot write the bundle {final}: {err}") from err
     if final.exists() and not (final.is_dir() and (not any(final.iterdir()) or (final / MANIFEST).is_file())):
         raise InputError(f"--out {final} exists and is not a bundle folder; give a new or empty folder")
     staging = final.with_name(f".{final.name}.{os.getpid()}.partial")

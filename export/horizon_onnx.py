@@ -39,6 +39,7 @@ from torch import nn
 from core.bank_reader import BankReader
 from core.command import CommandParser, run_command
 from core.errors import InputError
+from core.files import writable_folder
 from export.bundle import staged_bundle
 from export.int8 import RecordingGraph, quantize_bundle_graphs
 from export.localization_onnx import export_matcher
@@ -133,6 +134,8 @@ def export_bundle(
                          f"multiple of 32 of at least 64 ({input_width})")
     input_height = max(int(round(height * input_width / width)), 8)
     frequencies = frequencies or bins // 2 + 1
+    if not 2 <= frequencies <= bins // 2 + 1:  # before anything is exported
+        raise InputError(f"--frequencies must be in [2, {bins // 2 + 1}], got {frequencies}")
     report: dict = {}
     with staged_bundle(out) as folder, tempfile.TemporaryDirectory() as tmp:
         export_horizon("finder", finder, folder / "finder.onnx", input_height, input_width)
@@ -201,6 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     def run() -> None:
+        writable_folder(args.out.parent)  # an unwritable output fails before the networks load
         finder, segmenter = horizon_network("finder", args.finder), horizon_network("segmenter", args.segmenter)
         bins, frequencies, threshold = matcher_settings(args.bank, args.bins, args.frequencies, args.threshold_deg)
         report = export_bundle(args.out, finder, segmenter, args.height, args.width, args.input_width, bins,

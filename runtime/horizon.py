@@ -71,13 +71,13 @@ class HorizonChain:
         self.input_height, self.stride = int(size["input_height"]), int(size["stride"])
         self.finder, self.level, self.segmenter = (self.bundle.graph(g) for g in ("finder", "level", "segmenter"))
 
-    def check(self, image: np.ndarray) -> None:
-        """``InputError`` unless ``image`` (B, 3, H, W) has the panorama height of the bundle and resizes to its
-        networks' input size."""
+    def check(self, image: np.ndarray, name: str = "panorama") -> None:
+        """``InputError`` (naming ``name``) unless ``image`` (B, 3, H, W) has the panorama height of the bundle and
+        resizes to its networks' input size."""
         height, width = image.shape[-2:]
         resized = max(int(round(height * self.input_width / width)), 8)
         if image.ndim != 4 or image.shape[1] != 3 or height != self.height or resized != self.input_height:
-            raise InputError(f"panorama of shape {image.shape[1:]} does not fit the bundle: it takes (3, "
+            raise InputError(f"{name} of shape {image.shape[1:]} does not fit the bundle: it takes (3, "
                              f"{self.height}, W) panoramas whose resize to width {self.input_width} is "
                              f"{self.input_height} px high")
 
@@ -114,6 +114,7 @@ def horizon_file(bundle: str | Path, image_path: str | Path, out: str | Path | N
     returns the report (the command ``runtime.horizon``)."""
     chain = HorizonChain(bundle, threads, provider)
     image = read_panorama(image_path)
+    chain.check(image, f"panorama {image_path}")
     profiles, pitch, roll = chain(image)
     if out:
         horizon, water = profiles[0].astype(np.float64)

@@ -107,7 +107,12 @@ def localize_files(bundle: str | Path, bank: str | Path, out: str | Path, images
         if compass is None:
             raise InputError("--images needs --compass CSV (image,compass_deg)")
         names, heading = read_compass_csv(compass, need_image=True)
-        profile = localizer.image_profiles([read_panorama(p) for p in image_paths(images, names)])
+        paths = image_paths(images, names)
+        panoramas = [read_panorama(p) for p in paths]
+        localizer.chain = HorizonChain(localizer.bundle)
+        for path, panorama in zip(paths, panoramas, strict=True):
+            localizer.chain.check(panorama, f"panorama {path}")
+        profile = localizer.image_profiles(panoramas)
     start = time.perf_counter()
     xy, heading_out, psr, _ = localizer.locate(profile, heading)
     seconds = time.perf_counter() - start

@@ -8,28 +8,25 @@ later one), the first-frame augmentation (``core.first_frame_augment``, the same
 per object a joint W_p/W_f fit (``init`` graph), the memory as numpy arrays (``insert`` graph per frame and
 object), W_f updates every ``update_every`` frames (``update`` graph, with its CG state), and per frame the
 ``frame`` graph (backbone, target models, decoder) followed by the soft aggregation of the objects (thesis eq.
-5.3). Masks are written as palette PNGs named after the frames, all at once when every frame was segmented.
+5.3); the frame loop is ``runtime.video_loop``. Masks are written as palette PNGs named after the frames, all at
+once when every frame was segmented.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import shutil
 import time
 from collections import defaultdict
-from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
 
 from core.command import CommandParser, run_command
 from core.errors import InputError
-from core.files import writable_folder
 from core.first_frame_augment import first_frame_augment
 from runtime.area import area_resize
 from runtime.bundle import Bundle, add_runtime_arguments
-from runtime.vos_io import list_frames, read_frame, read_mask, write_mask
+from runtime.video_loop import NumpyVideoLoop, segment_folder
 
 #: Clamp of the per-object probabilities in the soft aggregation (``models.vos.merge``).
 EPS = 1e-7
@@ -63,8 +60,9 @@ def hinge_pixel_weights(labels: np.ndarray, fg_target: float, min_pixels: int) -
     return np.sqrt(np.where(fg, w_fg[..., None, None], w_bg[..., None, None])).astype(np.float32)
 
 
-class OnnxFRTMTracker:
-    """FRTM on a VOS bundle; ``segment`` takes and yields numpy arrays like ``FRTMLoop.segment`` tensors.
+class OnnxFRTMTracker(NumpyVideoLoop):
+    """FRTM on a VOS bundle; ``segment`` (``runtime.video_loop.NumpyVideoLoop``) takes and yields numpy arrays like
+    ``FRTMLoop.segment`` tensors.
 
     Args:
         bundle: the bundle folder; threads, provider: as ``runtime.session.Graph``.
@@ -80,15 +78,14 @@ class OnnxFRTMTracker:
         self.min_size, self.max_size = int(size["min_size"]), int(size["max_size"])
         self.graphs = {name: self.bundle.graph(name) for name in ("frame", "features", "init", "insert", "update")}
         self.timings: dict[str, float] = defaultdict(float)
-        self.reset()
+        super().__init__()
 
     def reset(self) -> None:
         """Forget the current video."""
-        self.ids: list[int] = []
+        super().reset()
         self.wp = self.wf = None
         self.memory: list[np.ndarray] = []  # features, labels, pixel weights, weights, newest (one row per object)
         self.cg_state: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        self.frame = 0
 
     def _tick(self, name: str, start: float) -> None:
         self.timings[name] += (time.perf_counter() - start) * 1000
@@ -175,86 +172,6 @@ class OnnxFRTMTracker:
         if self.frame % int(self.settings["update_every"]) == 0:
             self.optimize_filters()
         self._tick("update", start)
-
-    def _image(self, frame: np.ndarray, index: int) -> np.ndarray:
-        frame = np.asarray(frame)
-        if frame.ndim != 3 or frame.shape[0] != 3 or not all(self.min_size <= n <= self.max_size
-                                                              for n in frame.shape[1:]):
-            raise InputError(f"frame {index} is {frame.shape}: the bundle takes (3, H, W) RGB frames of "
-                             f"{self.min_size} to {self.max_size} px a side")
-        return frame.astype(np.float32) / np.float32(255) if frame.dtype == np.uint8 else frame.astype(np.float32)
-
-    def segment(self, frames: Iterable[np.ndarray], masks: dict[int, np.ndarray]) -> Iterator[np.ndarray]:
-        """Segment a video.
-
-        Args:
-            frames: (3, H, W) RGB frames, uint8 or float in [0, 1].
-            masks: ``{frame index: (H, W) label map}``; frame 0 must be present; objects whose id first appears in
-                a later map start there (their given mask overrides the prediction).
-
-        Yields:
-            (H, W) int64 label maps, one per frame.
-        """
-        if 0 not in masks:
-            raise InputError("the first frame has no mask")
-        self.reset()
-        for t, frame in enumerate(frames):
-            image = self._image(frame, t)
-            given = None if masks.get(t) is None else np.asarray(masks[t])
-            if given is not None and given.shape != image.shape[-2:]:
-                raise InputError(f"mask of frame {t} is {given.shape}, the frame {image.shape[-2:]}")
-            self.frame = t
-            new_ids = [] if given is None else [int(i) for i in np.unique(given) if i not in (0, 255)
-                                                 and i not in self.ids]
-            if t == 0 and not new_ids:
-                raise InputError("the first-frame mask is empty: it labels no object")
-            if self.ids:
-                labels, soft, z = self.step(image)
-                if new_ids:
-                    new = np.isin(given, new_ids)
-                    labels = np.where(new, given, labels).astype(np.int64)
-                    soft = soft * ~new
-                self.update(soft, z)
-            else:
-                labels = np.where(np.isin(given, new_ids), given, 0).astype(np.int64)
-            if new_ids:
-                self.add_objects(image, labels, new_ids)
-            yield labels
-
-
-def segment_folder(tracker: OnnxFRTMTracker, video: str | Path, mask_path: str | Path, out: str | Path
-                   ) -> tuple[int, float]:
-    """Segment the frames of ``video`` from the first-frame mask and write ``out/<frame>.png`` palette masks, all
-    moved into place only when every frame was segmented. Returns (frames, seconds)."""
-    frames = list_frames(video)
-    mask = read_mask(mask_path)
-    first = read_frame(frames[0])
-    if mask.shape != first.shape[1:]:
-        raise InputError(f"mask {mask_path} is {mask.shape} (H, W) but frame {frames[0]} is {first.shape[1:]}")
-    if not ((mask > 0) & (mask < 255)).any():
-        raise InputError(f"mask {mask_path} labels no object (it is empty)")
-    final = writable_folder(out)
-    staging = final.with_name(f".{final.name}.{os.getpid()}.partial")
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
-    start = time.perf_counter()
-
-    def images() -> Iterator[np.ndarray]:
-        for i, path in enumerate(frames):
-            image = first if i == 0 else read_frame(path)
-            if image.shape != first.shape:
-                raise InputError(f"frame {path} is {image.shape[1:]} but the first frame is {first.shape[1:]}")
-            yield image
-
-    try:
-        for path, labels in zip(frames, tracker.segment(images(), {0: mask}), strict=True):
-            write_mask(staging / f"{path.stem}.png", labels)
-        seconds = time.perf_counter() - start
-        for png in sorted(staging.iterdir()):
-            os.replace(png, final / png.name)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    return len(frames), seconds
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,7 +16,7 @@ import torch
 from data.vos.io import write_mask
 from data.vos.synthetic import synthetic_video
 from data.world.dem import generate_archipelago, save_dem
-from models.horizon.lit import HorizonFinderSystem
+from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
 from models.vos.lit import FRTMSegmentation
 from tests.cli.test_triangulate import write_bundler
 from tests.models.test_checkpoint import save_checkpoint
@@ -110,6 +110,8 @@ def files(tmp_path_factory) -> dict[str, str]:
     f["frtm_ckpt"] = str(root / "frtm.ckpt")
     save_checkpoint(HorizonFinderSystem(**SMALL_FINDER), root / "finder.ckpt")
     f["finder_ckpt"] = str(root / "finder.ckpt")
+    save_checkpoint(HorizonSegmenterSystem(**SMALL_FINDER), root / "segmenter.ckpt")
+    f["segmenter_ckpt"] = str(root / "segmenter.ckpt")
     (root / "garbage.ckpt").write_bytes(b"PK\x03\x04 not a zip")
     f["corrupt_ckpt"] = str(root / "garbage.ckpt")
     (root / "other_task_onnx").mkdir()
@@ -144,6 +146,7 @@ HORIZON = ["horizon", "--image", "{pano}", "--input-width", "256"]
 SEGMENT = ["segment", "--out", "{out}"]
 BANK = ["build-bank", "--spacing", "100", "--bins", "64", "--max-range", "300", "--out", "{out}"]
 FINDER_CONFIG = "configs/demo/horizon_finder.yaml"
+HORIZON_EXPORT = ["--finder", "{finder_ckpt}", "--segmenter"]
 
 #: (case id, program, argv, what the error line must name)
 CASES = [
@@ -248,19 +251,19 @@ CASES = [
      "{missing}.ckpt"),
     ("export.vos_onnx/unwritable-out", "export.vos_onnx", ["--ckpt", "{frtm_ckpt}", "--out", "{unwritable}"],
      "{unwritable}"),
-    ("export.horizon_onnx/other-model-ckpt", "export.horizon_onnx", ["--which", "finder", "--ckpt", "{frtm_ckpt}",
-                                                                     "--out", "{out}.onnx"], "{frtm_ckpt}"),
-    ("export.horizon_onnx/corrupt-ckpt", "export.horizon_onnx", ["--which", "segmenter", "--ckpt",
-                                                                 "{corrupt_ckpt}", "--out", "{out}.onnx"],
-     "{corrupt_ckpt}"),
-    ("export.horizon_onnx/unwritable-out", "export.horizon_onnx", ["--which", "level", "--out",
-                                                                   "{unwritable}/level.onnx"], "{unwritable}"),
-    ("export.localization_onnx/bad-frequencies", "export.localization_onnx", ["--bins", "64", "--frequencies",
-                                                                              "99", "--out", "{out}.onnx"],
+    ("export.horizon_onnx/other-model-ckpt", "export.horizon_onnx", [*HORIZON_EXPORT, "{frtm_ckpt}", "--out",
+                                                                     "{out}"], "{frtm_ckpt}"),
+    ("export.horizon_onnx/corrupt-ckpt", "export.horizon_onnx", [*HORIZON_EXPORT, "{corrupt_ckpt}", "--out",
+                                                                 "{out}"], "{corrupt_ckpt}"),
+    ("export.horizon_onnx/unwritable-out", "export.horizon_onnx", [*HORIZON_EXPORT, "{segmenter_ckpt}", "--out",
+                                                                   "{unwritable}/bundle"], "{unwritable}"),
+    ("export.horizon_onnx/bad-frequencies", "export.horizon_onnx", [*HORIZON_EXPORT, "{segmenter_ckpt}", "--bins",
+                                                                    "64", "--frequencies", "99", "--out", "{out}"],
      "--frequencies"),
-    ("export.tracking_onnx/unwritable-out", "export.tracking_onnx", ["--out", "{unwritable}/t.onnx"],
+    ("export.tracking_onnx/unwritable-out", "export.tracking_onnx", ["--out", "{unwritable}/bundle"],
      "{unwritable}"),
-    ("export.triangulation/unwritable-out", "export.triangulation", ["--out", "{unwritable}/d.onnx"],
+    ("export.tracking_onnx/not-a-bundle-folder", "export.tracking_onnx", ["--out", "{root}"], "{root}"),
+    ("export.triangulation/unwritable-out", "export.triangulation", ["--out", "{unwritable}/bundle"],
      "{unwritable}"),
 ]
 
@@ -278,8 +281,9 @@ def run_program(program: str, argv: list[str]) -> int:
         return exit_.code
 
 
-@pytest.mark.parametrize(("case", "program", "argv", "names"), CASES, ids=[c[0] for c in CASES])
-def test_bad_input_ends_in_one_line_and_exit_2(files, tmp_path, capsys, case, program, argv, names) -> None:
+def check_one_line_and_exit_2(files, tmp_path, capsys, case, program, argv, names) -> None:
+    """Run ``program argv`` (placeholders filled from ``files``) and check the one error line, exit code 2 and
+    that nothing was written."""
     values = {**files, "out": str(tmp_path / "out" / "result")}
     argv = [a.format(**values) for a in argv]
     code = run_program(program, argv)
@@ -291,3 +295,85 @@ def test_bad_input_ends_in_one_line_and_exit_2(files, tmp_path, capsys, case, pr
     assert sum("error:" in line for line in lines) == 1, lines
     assert not [p for p in (tmp_path / "out").rglob("*") if p.is_file()], case
     assert not list(Path(files["root"]).rglob("*.partial*")), case
+
+
+@pytest.mark.parametrize(("case", "program", "argv", "names"), CASES, ids=[c[0] for c in CASES])
+def test_bad_input_ends_in_one_line_and_exit_2(files, tmp_path, capsys, case, program, argv, names) -> None:
+    check_one_line_and_exit_2(files, tmp_path, capsys, case, program, argv, names)
+
+
+@pytest.fixture(scope="module")
+def bundles(files, tmp_path_factory, triangulation_bundle, tracking_bundle, horizon_setup, vos_setup) -> dict:
+    """The exported bundles, and broken copies: a graph missing, a graph changed, a bank of other bins."""
+    root = tmp_path_factory.mktemp("bundles")
+    b = {"tri_bundle": str(triangulation_bundle), "track_bundle": str(tracking_bundle),
+         "horizon_bundle": str(horizon_setup["bundle"]), "vos_bundle": str(vos_setup["bundle"]),
+         "horizon_bank": str(horizon_setup["bank"])}
+    for task, source, graph in (("tri", triangulation_bundle, "dogleg.onnx"), ("vos", vos_setup["bundle"],
+                                                                              "frame.onnx")):
+        missing = shutil.copytree(source, root / f"{task}_missing")
+        (missing / graph).unlink()
+        changed = shutil.copytree(source, root / f"{task}_changed")
+        data = bytearray((changed / graph).read_bytes())
+        data[len(data) // 2] ^= 1
+        (changed / graph).write_bytes(bytes(data))
+        b[f"{task}_missing"], b[f"{task}_changed"] = str(missing), str(changed)
+    bank = shutil.copytree(horizon_setup["bank"], root / "bank128")
+    (bank / "bank.json").write_text((bank / "bank.json").read_text().replace('"bins": 64', '"bins": 128'))
+    b["bank128"] = str(bank)
+    pano = np.zeros((64, 512, 3), np.uint8)
+    cv2.imwrite(str(root / "pano512.png"), pano)
+    b["pano512"] = str(root / "pano512.png")
+    (root / "images").mkdir()
+    cv2.imwrite(str(root / "images" / "a.png"), pano)
+    (root / "compass.csv").write_text("image,compass_deg\na.png,10\n")
+    b["images512"], b["compass512"] = str(root / "images"), str(root / "compass.csv")
+    return {**files, **b}
+
+
+RT_TRI = ["runtime.triangulation", "--bundler", "{cube}", "--bundle"]
+RT_TRACK = ["runtime.tracking", "--frames", "{frames}", "--detect", "5", "--out", "{out}.npz", "--bundle"]
+RT_VOS = ["runtime.vos", "--video", "{video}", "--mask", "{mask}", "--out", "{out}", "--bundle"]
+#: (case id, program, argv, what the error line must name): bundles of another task, a graph missing or changed,
+#: inputs that do not fit the bundle, for every runtime command and ``infer.py --onnx``.
+RUNTIME_CASES = [
+    ("runtime.triangulation/other-task-bundle", RT_TRI[0], [*RT_TRI[1:], "{track_bundle}"], "{track_bundle}"),
+    ("runtime.triangulation/missing-graph", RT_TRI[0], [*RT_TRI[1:], "{tri_missing}"], "{tri_missing}"),
+    ("runtime.triangulation/hash-mismatch", RT_TRI[0], [*RT_TRI[1:], "{tri_changed}"], "{tri_changed}"),
+    ("runtime.triangulation/wrong-size", RT_TRI[0], [*RT_TRI[1:], "{tri_bundle}", "--views", "2"], "--views 2"),
+    ("runtime.triangulation/not-a-bundle", RT_TRI[0], [*RT_TRI[1:], "{root}"], "{root}"),
+    ("runtime.tracking/other-task-bundle", RT_TRACK[0], [*RT_TRACK[1:], "{vos_bundle}"], "{vos_bundle}"),
+    ("runtime.tracking/wrong-size", RT_TRACK[0], [*RT_TRACK[1:], "{track_bundle}"], "frame 0"),
+    ("runtime.horizon/other-task-bundle", "runtime.horizon", ["--image", "{pano}", "--bundle", "{tri_bundle}"],
+     "{tri_bundle}"),
+    ("runtime.horizon/wrong-size", "runtime.horizon", ["--image", "{pano512}", "--bundle", "{horizon_bundle}"],
+     "{pano512}"),
+    ("runtime.localize/other-task-bundle", "runtime.localize", ["--bank", "{horizon_bank}", "--profiles",
+                                                                "{nan_profiles}", "--out", "{out}.csv", "--bundle",
+                                                                "{vos_bundle}"], "{vos_bundle}"),
+    ("runtime.localize/other-bins-bank", "runtime.localize", ["--bank", "{bank128}", "--profiles",
+                                                              "{nan_profiles}", "--out", "{out}.csv", "--bundle",
+                                                              "{horizon_bundle}"], "{bank128}"),
+    ("runtime.localize/wrong-size", "runtime.localize", ["--bank", "{horizon_bank}", "--images", "{images512}",
+                                                         "--compass", "{compass512}", "--out", "{out}.csv",
+                                                         "--bundle", "{horizon_bundle}"], "a.png"),
+    ("runtime.vos/other-task-bundle", RT_VOS[0], [*RT_VOS[1:], "{horizon_bundle}"], "{horizon_bundle}"),
+    ("runtime.vos/missing-graph", RT_VOS[0], [*RT_VOS[1:], "{vos_missing}"], "{vos_missing}"),
+    ("runtime.vos/hash-mismatch", RT_VOS[0], [*RT_VOS[1:], "{vos_changed}"], "{vos_changed}"),
+    ("runtime.vos/wrong-size", RT_VOS[0], ["--video", "{video}", "--mask", "{small_mask}", "--out", "{out}",
+                                           "--bundle", "{vos_bundle}"], "{small_mask}"),
+    ("triangulate/onnx-other-task", "infer", [*TRI, "{cube}", "--onnx", "{vos_bundle}"], "{vos_bundle}"),
+    ("track/onnx-wrong-size", "infer", ["track", "--frames", "{frames}", "--detect", "5", "--out", "{out}.npz",
+                                        "--onnx", "{track_bundle}"], "frame 0"),
+    ("horizon/onnx-wrong-size", "infer", ["horizon", "--image", "{pano512}", "--onnx", "{horizon_bundle}"],
+     "{pano512}"),
+    ("segment/onnx-hash-mismatch", "infer", [*SEGMENT, "--video", "{video}", "--mask", "{mask}", "--onnx",
+                                             "{vos_changed}"], "{vos_changed}"),
+]
+
+
+@pytest.mark.slow  # uses exported bundles
+@pytest.mark.parametrize(("case", "program", "argv", "names"), RUNTIME_CASES, ids=[c[0] for c in RUNTIME_CASES])
+def test_bad_bundles_and_inputs_end_in_one_line_and_exit_2(bundles, tmp_path, capsys, case, program, argv,
+                                                             names) -> None:
+    check_one_line_and_exit_2(bundles, tmp_path, capsys, case, program, argv, names)

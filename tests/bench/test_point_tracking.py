@@ -65,3 +65,13 @@ def test_stress_conditions_are_rows_with_occlusion_recall(capsys):
     assert "occluded_lost_frac" not in result["stress_jpeg"]["methods"]["ccot"]
     for m in (*occlusion.values(), *result["stress_jpeg"]["methods"].values()):
         assert m["first_call_s"] > 0
+
+
+@pytest.mark.slow  # uses an exported bundle
+def test_runtime_tracker_is_a_method(tracking_bundle, capsys):
+    assert point_tracking.main(["--synthetic", "--frames", "4", "--points", "40", "--repeats", "1", "--methods",
+                                "ccot", "ccot_ort", "klt", "--bundle", str(tracking_bundle), "--json"]) == 0
+    methods = json.loads(capsys.readouterr().out)["datasets"]["synthetic"]["methods"]
+    assert methods["ccot_ort"]["speed_vs_klt"] > 0
+    for key in ("epe_median", "inlier_frac", "lost_frac"):
+        assert methods["ccot_ort"][key] == pytest.approx(methods["ccot"][key], abs=1e-3)

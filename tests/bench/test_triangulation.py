@@ -1,5 +1,7 @@
 import json
 
+import pytest
+
 from bench import triangulation
 
 
@@ -18,3 +20,12 @@ def test_benchmark_prints_one_json_object_with_every_method(tmp_path, capsys):
     assert methods["dogleg"]["err3d_median"] < methods["midpoint2"]["err3d_median"]
     assert methods["dogleg"]["reproj_rms"] <= methods["midpoint3"]["reproj_rms"]
     assert plot.stat().st_size > 10_000
+
+
+@pytest.mark.slow  # uses an exported bundle
+def test_runtime_dogleg_is_a_method(triangulation_bundle, capsys):
+    triangulation.main(["--points", "2000", "--repeats", "1", "--methods", "dogleg", "ort_dogleg", "opencv_dlt",
+                        "--bundle", str(triangulation_bundle), "--json"])
+    methods = json.loads(capsys.readouterr().out)["methods"]
+    assert set(methods) == {"dogleg", "ort_dogleg", "opencv_dlt"} and methods["ort_dogleg"]["speed_vs_opencv_dlt"] > 0
+    assert methods["ort_dogleg"]["err3d_median"] == pytest.approx(methods["dogleg"]["err3d_median"], rel=1e-4)

@@ -83,3 +83,13 @@ def test_untrained_pretrained_system_and_speed_side_by_side(tmp_path) -> None:
                  "davos": davos.make_tracker}, n_frames=3, repeats=1)
     assert set(out) == {"lite0", "r18", "davos"} and set(out["lite0"]) == {"240p", "480p"}
     assert all(out[m][r]["fps"] > 0 and out[m][r]["cpu_s_per_frame"] > 0 for m in out for r in out[m])
+
+
+@pytest.mark.slow  # uses an exported bundle
+def test_a_bundle_runs_as_a_method(vos_setup) -> None:
+    args = parse_args(["--synthetic", "--videos", "1", "--max-frames", "4", "--height", "64", "--width", "96",
+                       "--methods", "first_frame_copy", "--onnx", str(vos_setup["bundle"]), "--threads", "1"])
+    result = run(args)
+    row = result["methods"][f"onnx:{vos_setup['bundle'].name}"]
+    assert set(result["methods"]) == {"first_frame_copy", f"onnx:{vos_setup['bundle'].name}"}
+    assert 0 <= row["jf"] <= 1 and row["fps"] > 0 and row["ms_per_frame"]["frame"] > 0

@@ -1,5 +1,6 @@
 """``infer.py horizon`` on one panorama with (tiny, untrained) HorizonFinder / HorizonSegmenter checkpoints and
-with the finder as an ONNX graph; the input width is checked."""
+with a horizon bundle (the runtime's path, matching PyTorch on the bundle's networks); the input width and the
+model options are checked."""
 
 import json
 import math
@@ -10,9 +11,10 @@ import pytest
 import torch
 
 import infer
-from export.horizon_onnx import export_horizon
-from models.builders import horizon_finder
+from data.horizon.datamodule import read_full_panorama
 from models.horizon.lit import HorizonFinderSystem, HorizonSegmenterSystem
+from models.horizon.localizer import panorama_profiles
+from runtime.horizon import horizon_file
 from tests.models.test_checkpoint import save_checkpoint
 
 TINY = {"backbone": "resnet18", "stage": "layer1", "heads": 2, "head_channels": 4, "channels": 8}
@@ -50,12 +52,16 @@ def test_horizon_with_checkpoints(scene, tmp_path, capsys):
     assert "multiple of 32" in capsys.readouterr().err
 
 
-@pytest.mark.slow
-def test_horizon_with_an_onnx_finder(scene, tmp_path, capsys):
-    assert infer.main(_args(scene, tmp_path)) == 0
-    from_ckpt = json.loads(capsys.readouterr().out)
-    onnx_path = tmp_path / "finder.onnx"
-    export_horizon("finder", horizon_finder(ckpt=scene / "finder.ckpt"), onnx_path, height=32, width=256)
-    assert infer.main(_args(scene, tmp_path, finder=onnx_path)) == 0
-    from_onnx = json.loads(capsys.readouterr().out)
-    assert abs(from_onnx["pitch_deg"] - from_ckpt["pitch_deg"]) < 1e-3
+@pytest.mark.slow  # uses an exported bundle
+def test_horizon_with_a_bundle_runs_the_runtime(scene, horizon_setup, capsys):
+    argv = ["horizon", "--image", str(scene / "pano.png"), "--json", "--onnx", str(horizon_setup["bundle"])]
+    assert infer.main(argv) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report == horizon_file(horizon_setup["bundle"], scene / "pano.png")
+    _, pitch, roll = panorama_profiles(read_full_panorama(scene / "pano.png"), horizon_setup["finder"],
+                                       horizon_setup["segmenter"], 256)
+    assert abs(report["pitch_deg"] - math.degrees(pitch.item())) < 0.01
+    assert infer.main([*argv, "--finder", str(scene / "finder.ckpt")]) == 2
+    assert "not both" in capsys.readouterr().err
+    assert infer.main(["horizon", "--image", str(scene / "pano.png"), "--finder", str(scene / "finder.ckpt")]) == 2
+    assert "give --finder CKPT and --segmenter CKPT" in capsys.readouterr().err

@@ -1,6 +1,6 @@
 """infer.py localize end to end on a small written DEM and a bank from ``infer.py build-bank``: profiles from a
-file (also through the ONNX matcher), panoramas through (untrained, tiny) horizon networks, and bad input with
-one-line errors."""
+file (also through a horizon bundle and the runtime), panoramas through (untrained, tiny) horizon networks, and
+bad input with one-line errors."""
 
 import csv
 import math
@@ -60,24 +60,20 @@ def test_localize_profiles_file(world, tmp_path):
     assert np.abs((got_heading - heading + 180) % 360 - 180).max() < 360 / 256
 
 
-@pytest.mark.slow
-def test_localize_profiles_file_with_the_onnx_matcher(world, tmp_path):
-    """The same with the exported matching step in onnxruntime."""
-    from export.localization_onnx import export_matcher
+@pytest.mark.slow  # uses an exported bundle
+def test_localize_with_a_bundle_runs_the_runtime(horizon_setup, tmp_path, capsys):
+    """``--onnx BUNDLE``: the runtime's localisation (the same track as ``runtime.localize``)."""
+    from runtime.localize import localize_files
 
-    root, dem = world
-    _profiles_file(root, dem, tmp_path / "p.npz")
-    assert main(["localize", "--bank", str(root / "bank"), "--profiles", str(tmp_path / "p.npz"),
-                 "--out", str(tmp_path / "track.csv")]) == 0
-    with (tmp_path / "track.csv").open() as f:
-        rows = list(csv.DictReader(f))
-    export_matcher(tmp_path / "onnx" / "matcher.onnx", bins=256)
-    assert main(["localize", "--bank", str(root / "bank"), "--profiles", str(tmp_path / "p.npz"),
-                 "--onnx", str(tmp_path / "onnx"), "--out", str(tmp_path / "track_onnx.csv")]) == 0
-    with (tmp_path / "track_onnx.csv").open() as f:
-        onnx_rows = list(csv.DictReader(f))
-    for a, b in zip(rows, onnx_rows, strict=True):
-        assert abs(float(a["x"]) - float(b["x"])) < 1e-2 and abs(float(a["y"]) - float(b["y"])) < 1e-2
+    s = horizon_setup
+    profiles = np.zeros((2, 64))
+    profiles[:, 10:20] = 0.02
+    np.savez(tmp_path / "p.npz", horizon=profiles, compass_deg=np.array([10.0, 200.0]))
+    assert main(["localize", "--bank", str(s["bank"]), "--profiles", str(tmp_path / "p.npz"), "--onnx",
+                 str(s["bundle"]), "--out", str(tmp_path / "cli.csv")]) == 0
+    assert "onnxruntime" in capsys.readouterr().out
+    localize_files(s["bundle"], s["bank"], tmp_path / "runtime.csv", profiles=tmp_path / "p.npz")
+    assert (tmp_path / "cli.csv").read_text() == (tmp_path / "runtime.csv").read_text()
 
 
 def test_localize_bad_input(world, tmp_path, capsys):

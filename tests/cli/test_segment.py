@@ -152,3 +152,19 @@ def test_annotations_named_after_no_frame_are_refused(video: Path, davos_ckpt: P
                        str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "named after no frame" in err[0] and not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow  # uses an exported bundle
+def test_a_bundle_segments_through_the_runtime(video: Path, vos_setup: dict, tmp_path: Path, capsys) -> None:
+    from runtime.video_loop import segment_folder as runtime_segment_folder
+    from runtime.vos import OnnxFRTMTracker
+
+    args = ["segment", "--video", str(video / "frames"), "--mask", str(video / "first.png"), "--onnx",
+            str(vos_setup["bundle"])]
+    assert infer.main([*args, "--out", str(tmp_path / "cli")]) == 0
+    assert "onnxruntime" in capsys.readouterr().out
+    runtime_segment_folder(OnnxFRTMTracker(vos_setup["bundle"]), video / "frames", video / "first.png",
+                           tmp_path / "runtime")
+    assert tree_bytes(tmp_path / "cli") == tree_bytes(tmp_path / "runtime") and len(tree_bytes(tmp_path / "cli")) == 4
+    assert infer.main([*args, "--out", str(tmp_path / "o"), "--overlay", str(tmp_path / "o.mp4")]) == 2
+    assert "need --ckpt" in capsys.readouterr().err

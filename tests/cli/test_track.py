@@ -72,3 +72,15 @@ def test_track_errors(frame_dir, tmp_path, capsys):
         assert infer.main(["track", *args, "--out", out]) == 2
         err = capsys.readouterr().err
         assert message in err and err.count("\n") == 1, err
+
+
+@pytest.mark.slow  # uses an exported bundle
+def test_track_with_a_bundle_runs_the_runtime(frame_dir, tracking_bundle, tmp_path, capsys):
+    from runtime.tracking import track_files
+
+    folder, _ = frame_dir
+    assert infer.main(["track", "--frames", str(folder), "--detect", "20", "--onnx", str(tracking_bundle), "--out",
+                       str(tmp_path / "cli.npz")]) == 0
+    assert "onnxruntime" in capsys.readouterr().out
+    track_files(tracking_bundle, folder, tmp_path / "runtime.npz", detect=20)
+    assert (tmp_path / "cli.npz").read_bytes() == (tmp_path / "runtime.npz").read_bytes()

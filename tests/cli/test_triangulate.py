@@ -78,3 +78,18 @@ def test_balbianello_dogleg_beats_midpoint_and_dlt(shared_data, capsys):
     assert reports["dogleg"]["err3d_median_rel"] < reports["midpoint"]["err3d_median_rel"]
     assert reports["dogleg"]["err3d_median_rel"] < reports["dlt"]["err3d_median_rel"]
     assert reports["dogleg"]["reproj_rms"] <= 0.5
+
+
+@pytest.mark.slow  # uses an exported bundle
+def test_triangulate_with_a_bundle_runs_the_runtime(triangulation_bundle, tmp_path, capsys):
+    from runtime.triangulation import triangulate_file
+
+    write_bundler(tmp_path / "cube.out")
+    argv = ["triangulate", "--bundler", str(tmp_path / "cube.out"), "--onnx", str(triangulation_bundle), "--json"]
+    assert infer.main([*argv, "--out", str(tmp_path / "cli.ply")]) == 0
+    report = json.loads(capsys.readouterr().out)
+    expected = triangulate_file(triangulation_bundle, tmp_path / "cube.out", out=tmp_path / "runtime.ply")
+    assert report["method"] == "dogleg_onnx" and report["count"] == expected["count"] == 50
+    assert (tmp_path / "cli.ply").read_text() == (tmp_path / "runtime.ply").read_text()
+    assert infer.main([*argv, "--method", "dlt"]) == 2
+    assert "has no graph" in capsys.readouterr().err

@@ -1,37 +1,54 @@
-"""ONNX export of HorizonFinder, HorizonSegmenter and the levelling warp: onnxruntime matches PyTorch."""
+"""The horizon bundle: each network graph matches PyTorch in onnxruntime at other widths and batch sizes, the chain
+matches on rendered panoramas, the int8 export quantizes the networks and reports their accuracy, bad input."""
 
 import numpy as np
 import pytest
 import torch
 
 from core.errors import InputError
-from export.horizon_onnx import example_inputs, export_horizon, parity
+from export.horizon_onnx import example_inputs, export_bundle, export_horizon, parity, render_panoramas
 from models.builders import horizon_network
+from runtime.bundle import Bundle
+from runtime.horizon import HorizonChain
+from tests.conftest import SMALL_HORIZON
 
-SMALL = {"backbone": "resnet18", "stage": "layer2", "heads": 2, "head_channels": 8, "channels": 16}
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("which", ["finder", "segmenter", "level"])
-def test_onnx_matches_pytorch(which, tmp_path):
-    torch.manual_seed(0)
-    model = horizon_network(which, **({} if which == "level" else SMALL))
-    if which != "level":  # give batch norm non-trivial statistics
-        for module in model.modules():
-            if isinstance(module, torch.nn.BatchNorm2d):
-                module.running_mean.uniform_(-0.1, 0.1)
-                module.running_var.uniform_(0.5, 1.5)
-    path = export_horizon(which, model, tmp_path / f"{which}.onnx", height=64, width=256)
-    for width, batch in ((256, 2), (384, 1)):  # the exported width and batch are dynamic
-        inputs = example_inputs(which, 64, width, batch=batch, seed=3)
-        with torch.no_grad():
-            scale = float(np.abs(model(*inputs).numpy()).max())
-        assert parity(which, model, path, inputs) <= 1e-4 * max(scale, 1.0)
+pytestmark = pytest.mark.slow  # ONNX export
 
 
-def test_export_bad_input(tmp_path):
+def test_graphs_match_pytorch(horizon_setup) -> None:
+    bundle = Bundle(horizon_setup["bundle"], "horizon")
+    models = {"finder": horizon_setup["finder"], "segmenter": horizon_setup["segmenter"],
+              "level": horizon_network("level")}
+    for which, model in models.items():
+        graph = bundle.graph(which)
+        for width, batch in ((256, 2), (384, 1)):  # the exported width and batch are dynamic
+            inputs = example_inputs(which, 32, width, batch=batch, seed=3)
+            with torch.no_grad():
+                expected = model(*inputs).numpy()
+            got = graph(*(t.numpy() for t in inputs))
+            assert np.abs(got - expected).max() <= 1e-4 * max(float(np.abs(expected).max()), 1.0), which
+
+
+def test_chain_parity_and_int8_report(horizon_setup, tmp_path) -> None:
+    images, truth = render_panoramas(tmp_path / "rendered", 4, 32, 256, seed=3)
+    assert images.shape == (4, 3, 32, 256) and truth["pitch"].shape == (4,)
+    check = parity(HorizonChain(horizon_setup["bundle"]), horizon_setup["finder"], horizon_setup["segmenter"], images)
+    assert check["angle_deg_max"] < 0.01 and check["profile_px_max"] < 0.05
+    report = export_bundle(tmp_path / "int8", horizon_setup["finder"], horizon_setup["segmenter"], 32, 256, 256, 64,
+                           int8=True, calibration=4)
+    manifest = Bundle(tmp_path / "int8", "horizon").manifest
+    assert manifest["precision"] == "int8" and manifest["int8"] == report["int8"]
+    for graph in ("finder", "segmenter"):
+        assert report["int8"]["graphs"][graph]["int8_bytes"] < report["int8"]["graphs"][graph]["fp32_bytes"] / 2
+    assert set(report["int8"]["accuracy"]["int8"]) == {"pitch_deg_median", "roll_deg_median", "horizon_px_median"}
+
+
+def test_export_bad_input(tmp_path) -> None:
     with pytest.raises(InputError, match="multiples of the backbone stride"):
-        export_horizon("finder", horizon_network("finder", **SMALL), tmp_path / "x.onnx", height=64, width=250)
+        export_horizon("finder", horizon_network("finder", **SMALL_HORIZON), tmp_path / "x.onnx", height=64,
+                       width=250)
+    with pytest.raises(InputError, match="at least twice as wide"):
+        export_bundle(tmp_path / "b", None, None, height=64, width=100)
     with pytest.raises(InputError, match="missing.ckpt does not exist"):
         horizon_network("segmenter", tmp_path / "missing.ckpt")
     with pytest.raises(InputError, match="must be one of finder, segmenter, level"):

@@ -1,28 +1,45 @@
-"""The per-frame tracking step exports to ONNX (dynamic frame size and point count) and matches PyTorch in
-onnxruntime."""
+"""The tracking bundle: its step and init graphs match PyTorch in onnxruntime at other frame sizes and point
+counts than exported, its manifest, bad export arguments."""
 
 import numpy as np
 import pytest
 import torch
 
-from export.tracking_onnx import example_inputs, export_tracking_step
-from models.onnx_graph import onnx_session, run_onnx
+from core.errors import InputError
+from export.tracking_onnx import example_inputs, export_bundle, parity
 from models.tracking import PointTracker
+from runtime.bundle import Bundle
 
 pytestmark = pytest.mark.slow  # ONNX export
 
 
-@pytest.mark.parametrize("method", ["ccot"])
-def test_tracking_step_onnx_parity(tmp_path, method):
-    path = export_tracking_step(tmp_path / "step.onnx", method, height=96, width=128, points=8)
-    session = onnx_session(path)
-    tracker = PointTracker(method).eval()
-    for height, width, points in ((96, 128, 8), (120, 176, 40)):  # another size and point count than exported
+def test_step_and_init_graphs_match_pytorch(tracking_bundle) -> None:
+    bundle = Bundle(tracking_bundle, "tracking")
+    step, init = bundle.graph("step"), bundle.graph("init")
+    tracker = PointTracker("ccot").eval()
+    for height, width, points in ((96, 128, 8), (120, 176, 40)):
         args = example_inputs(tracker, height, width, points, seed=3)
         with torch.no_grad():
             ref = tracker(*args)
-        out = run_onnx(session, *args)
+        out = step(*(a.numpy() for a in args))
         np.testing.assert_array_equal(out[1], ref[1].numpy())  # lost flags
         for got, want in zip(out[:1] + out[2:], (ref[0], *ref[2:]), strict=True):
             np.testing.assert_allclose(got, want.numpy(), rtol=1e-4, atol=1e-4 * float(want.abs().max()))
         assert (~ref[1]).sum() > points // 2  # most points really tracked, so the comparison is meaningful
+        state = tracker.init(args[1][0, 0], args[2])
+        got = init(args[1].numpy(), args[2].numpy())
+        for a, b in zip(got[3:], state.filters, strict=True):
+            np.testing.assert_allclose(a, b.numpy(), rtol=1e-4, atol=1e-4 * float(b.abs().max()))
+    assert bundle.section("settings")["method"] == "ccot" and bundle.section("thresholds")["psr_threshold"] == 2.5
+
+
+def test_parity_on_the_synthetic_sequence(tracking_bundle) -> None:
+    error, flags = parity(tracking_bundle, frames=4, points=50)
+    assert error < 0.01 and flags == 0
+
+
+def test_bad_export_arguments(tmp_path) -> None:
+    with pytest.raises(InputError, match="unknown tracking method"):
+        export_bundle(tmp_path / "b", "klt")
+    with pytest.raises(InputError, match="must lie in"):
+        export_bundle(tmp_path / "b", "ccot", height=32)

@@ -1,24 +1,20 @@
-import numpy as np
-import pytest
-import torch
+"""The triangulation bundle: both dogleg graphs (cameras shared and per point) match PyTorch in onnxruntime, bad
+export arguments."""
 
-from data.sfm.synthetic import synthetic_cube_scene
-from export.triangulation import export_dogleg
-from models.geometry.dogleg import TriangulateDogleg
-from models.onnx_graph import onnx_session, run_onnx
+import pytest
+
+from core.errors import InputError
+from export.triangulation import export_bundle, parity
 
 pytestmark = pytest.mark.slow  # ONNX export
 
 
-def test_dogleg_onnx_matches_pytorch(tmp_path):
-    """Must show 7: fixed-iteration dogleg in onnxruntime within 1e-4 relative of PyTorch, any number of points."""
-    path = export_dogleg(tmp_path / "dogleg.onnx", views=3, iterations=5)
-    session = onnx_session(path)
-    for count in (5, 3000):
-        scene = synthetic_cube_scene(count, noise_px=1.0, seed=count, dtype=torch.float32)
-        points, cost, valid, converged = run_onnx(session, scene.cameras, scene.observations)
-        expected = TriangulateDogleg(iterations=5)(scene.cameras, scene.observations)
-        np.testing.assert_allclose(points, expected.points.numpy(), rtol=1e-4, atol=1e-5)
-        np.testing.assert_allclose(cost, expected.cost.numpy(), rtol=1e-4, atol=1e-4)
-        np.testing.assert_array_equal(valid, expected.valid.numpy())
-        assert converged.mean() >= 0.99
+def test_bundle_matches_pytorch(triangulation_bundle) -> None:
+    assert parity(triangulation_bundle, points=3000) < 1e-4  # cube of half size 1
+
+
+def test_bad_export_arguments(tmp_path) -> None:
+    with pytest.raises(InputError, match="--views must be at least 2"):
+        export_bundle(tmp_path / "b", views=1)
+    with pytest.raises(InputError, match="--iterations must be at least 1"):
+        export_bundle(tmp_path / "b", iterations=0)

@@ -1,0 +1,68 @@
+"""Deployment bundles: the manifest a bundle is opened with, and each way a bundle can be wrong (another task, a
+graph missing or changed, a manifest edited), named in one InputError."""
+
+import json
+import shutil
+
+import pytest
+
+from core.errors import InputError
+from runtime.bundle import MANIFEST, Bundle, file_sha256, model_hash
+
+pytestmark = pytest.mark.slow  # uses an exported bundle
+
+
+@pytest.fixture
+def bundle(triangulation_bundle, tmp_path):
+    """A copy of the triangulation bundle that a test may break."""
+    return shutil.copytree(triangulation_bundle, tmp_path / "bundle")
+
+
+def test_manifest_names_the_task_graphs_and_their_hashes(bundle) -> None:
+    opened = Bundle(bundle, "triangulation")
+    manifest = opened.manifest
+    assert manifest["task"] == "triangulation" and manifest["opset"] == 20 and manifest["precision"] == "float32"
+    assert set(manifest["graphs"]) == {"dogleg", "dogleg_shared"}
+    for name, entry in manifest["graphs"].items():
+        assert entry["sha256"] == file_sha256(bundle / f"{name}.onnx")
+    assert manifest["model_hash"] == model_hash(manifest["graphs"])
+    assert opened.section("input")["views"] == 3 and opened.section("thresholds")["iterations"] == 5
+    assert opened.graph("dogleg").input_names == ["cameras", "observations"]
+    assert sorted(p.name for p in bundle.iterdir()) == ["bundle.json", "dogleg.onnx", "dogleg_shared.onnx"]
+
+
+def _edit_manifest(bundle, change) -> None:
+    manifest = json.loads((bundle / MANIFEST).read_text())
+    change(manifest)
+    (bundle / MANIFEST).write_text(json.dumps(manifest))
+
+
+def test_bad_bundles_are_named(bundle, tmp_path) -> None:
+    with pytest.raises(InputError, match="is a 'triangulation' bundle, not a 'vos' bundle"):
+        Bundle(bundle, "vos")
+    with pytest.raises(InputError, match="no bundle.json"):
+        Bundle(tmp_path, "triangulation")
+    with pytest.raises(InputError, match="not a folder"):
+        Bundle(tmp_path / "missing", "triangulation")
+    graph = (bundle / "dogleg.onnx").read_bytes()
+    (bundle / "dogleg.onnx").write_bytes(graph[:-1] + bytes([graph[-1] ^ 1]))
+    with pytest.raises(InputError, match="dogleg.onnx does not match its hash"):
+        Bundle(bundle, "triangulation")
+    (bundle / "dogleg.onnx").unlink()
+    with pytest.raises(InputError, match="is missing its graph dogleg.onnx"):
+        Bundle(bundle, "triangulation")
+
+
+def test_edited_manifests_are_refused(bundle) -> None:
+    _edit_manifest(bundle, lambda m: m["graphs"].pop("dogleg_shared"))
+    with pytest.raises(InputError, match="lists no graph dogleg_shared"):
+        Bundle(bundle, "triangulation")
+    (bundle / MANIFEST).write_text("{ not json")
+    with pytest.raises(InputError, match="not valid JSON"):
+        Bundle(bundle, "triangulation")
+
+
+def test_a_changed_model_hash_is_refused(bundle) -> None:
+    _edit_manifest(bundle, lambda m: m.update(model_hash="0" * 64))
+    with pytest.raises(InputError, match="model hash"):
+        Bundle(bundle, "triangulation")

@@ -1,0 +1,73 @@
+"""The runtime's point tracker: its command, run without torch, against the PyTorch tracker on the same frames
+and start points (tracks within 0.01 px, the same lost flags), OpenCV's start points, a lone point, frames that
+do not fit the bundle."""
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from core.errors import InputError
+from core.frames import read_frames
+from data.flow import synthetic_sequence
+from models.tracking import PointTracker
+from runtime.tracking import OnnxPointTracker, good_features
+
+pytestmark = pytest.mark.slow  # uses an exported bundle
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("frames")
+    seq = synthetic_sequence(frames=6, size=(96, 128), max_motion=4.0, seed=2)
+    for t, frame in enumerate(seq.frames):
+        cv2.imwrite(str(folder / f"f_{t:03d}.png"), frame.round().astype(np.uint8))
+    return folder
+
+
+def _pytorch_tracks(folder, points: np.ndarray):
+    images, _ = read_frames(folder)
+    tracks, lost, psr = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
+                                                   torch.from_numpy(points).float())
+    return tracks.numpy(), lost.numpy(), psr.numpy()
+
+
+def test_command_without_torch_matches_pytorch(torch_free, tracking_bundle, frames, tmp_path) -> None:
+    points = np.random.default_rng(0).uniform([4, 4], [124, 92], (60, 2))
+    points[0] = (-5, 10)  # outside: lost from the start
+    np.save(tmp_path / "points.npy", points)
+    torch_free("runtime.tracking", "--bundle", tracking_bundle, "--frames", frames, "--points",
+               tmp_path / "points.npy", "--out", tmp_path / "tracks.npz")
+    data = np.load(tmp_path / "tracks.npz")
+    tracks, lost, psr = _pytorch_tracks(frames, points)
+    assert str(data["method"]) == "ccot" and data["tracks"].shape == (6, 60, 2)
+    np.testing.assert_array_equal(data["lost"], lost)
+    assert np.abs(data["tracks"] - tracks).max() < 0.01
+    assert data["lost"][0, 0] and not data["lost"][-1, 1:].all()
+    np.testing.assert_allclose(data["psr"][1:], psr[1:], rtol=1e-3)
+
+
+def test_detected_points_are_opencvs_good_features(torch_free, tracking_bundle, frames, tmp_path) -> None:
+    torch_free("runtime.tracking", "--bundle", tracking_bundle, "--frames", frames, "--detect", "25", "--out",
+               tmp_path / "tracks.npz")
+    data = np.load(tmp_path / "tracks.npz")
+    first = read_frames(frames)[0][0]
+    np.testing.assert_array_equal(data["points"], good_features(first, 25))
+    expected = cv2.goodFeaturesToTrack(first.astype(np.uint8), 25, 0.01, 5).reshape(-1, 2)
+    np.testing.assert_allclose(data["points"], expected)
+
+
+def test_a_lone_point_and_bad_frames(tracking_bundle, frames) -> None:
+    images, _ = read_frames(frames)
+    tracker = OnnxPointTracker(tracking_bundle, threads=1)
+    start = np.array([[60.0, 40.0]])
+    tracks, lost, _ = tracker.track(images, start)
+    ref_tracks, ref_lost, _ = _pytorch_tracks(frames, start)
+    assert tracks.shape == (6, 1, 2) and np.abs(tracks - ref_tracks).max() < 0.01
+    np.testing.assert_array_equal(lost, ref_lost)
+    with pytest.raises(InputError, match=r"frame 0 is \(40, 64\)"):
+        tracker.track([np.zeros((40, 64))], start)
+    with pytest.raises(InputError, match="frame 1 has size"):
+        tracker.track([images[0], images[0][:, :100]], start)
+    with pytest.raises(InputError, match="no good features"):
+        good_features(np.zeros((96, 128)), 10)
