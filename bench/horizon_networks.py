@@ -1,14 +1,17 @@
 """HorizonFinder and HorizonSegmenter against the ground truth and against the classical labels (ch. 4.3).
 
     python -m bench.horizon_networks --finder F.ckpt --segmenter S.ckpt --data DIR [--input-width 512]
-                                     [--json] [--plot networks.png]
+                                     [--onnx BUNDLE [BUNDLE ...]] [--threads 1] [--json] [--plot networks.png]
 
 DIR is a held-out dataset written by ``python infer.py render-dataset`` (or a DataModule's test set). Prints
 median errors and failure rates of both networks and of the classical pipeline on the same frames, for the clean
 and the degraded frames (the metrics of ``train.py test``; the segmenter there sees truly levelled panoramas),
 and of the deployed chain (finder -> levelling with its angles -> segmenter; failure = median error > 2 px).
 ``demo()`` renders a small set (192 + 48 panoramas at 512 x 64 px), trains both networks on it at 256 px input
-for 20 epochs each and prints this table for them (``--input-width 256``).
+for 20 epochs each and prints this table for them (``--input-width 256``). ``--onnx BUNDLE`` adds the speed of the
+chain in images per second, PyTorch eager (``models.horizon.localizer.panorama_profiles``) and the deployment
+runtime on each bundle (``runtime.horizon.HorizonChain``, e.g. a float32 and an int8 bundle of the same
+checkpoints), in the same run on the same panoramas, best of ``--repeats``, with ``--threads`` threads.
 """
 
 from __future__ import annotations
@@ -79,6 +82,41 @@ def evaluate_chain(finder: Path, segmenter: Path, data: Path, input_width: int =
             out[f"chain/{subset}/horizon_px_median"] = float(np.median(error[mask]))
             out[f"chain/{subset}/failure_rate"] = float(np.mean(error[mask] > 2.0))
     return out
+
+
+def chain_speed(find, segment, bundles: list[Path], data: Path, input_width: int = 512, repeats: int = 3,
+                batch: int = 8) -> dict[str, float]:
+    """Images per second of the chain (finder -> levelling -> segmenter, profiles at the panorama width) on the
+    panoramas of ``data``, ``batch`` at a time: PyTorch eager with the networks ``find`` and ``segment``
+    (``speed/pytorch_images_per_s``) and the runtime on each bundle (``speed/onnx:<folder>_images_per_s``); the
+    methods take turns and the best run counts."""
+    import time
+
+    import numpy as np
+    import torch
+
+    from data.horizon.dataset import read_split
+    from models.horizon.localizer import panorama_profiles
+    from runtime.horizon import HorizonChain, read_panorama
+
+    count = len(read_split(data, "truth")["pitch"])
+    images = np.concatenate([read_panorama(Path(data) / "images" / f"{k:06d}.png") for k in range(count)])
+    tensor = torch.from_numpy(images)
+    runs = {"pytorch": lambda chunk: panorama_profiles(tensor[chunk], find, segment, input_width)}
+    for bundle in bundles:
+        chain = HorizonChain(bundle, threads=torch.get_num_threads())
+        if chain.input_width != input_width:
+            raise InputError(f"bundle {bundle} takes networks of width {chain.input_width}, not --input-width "
+                             f"{input_width}")
+        runs[f"onnx:{Path(bundle).name}"] = lambda chunk, chain=chain: chain(images[chunk])
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(repeats + 1):  # the first round warms up
+        for name, run in runs.items():
+            start = time.perf_counter()
+            for i in range(0, count, batch):
+                run(slice(i, i + batch))
+            best[name] = min(best[name], time.perf_counter() - start)
+    return {f"speed/{name}_images_per_s": count / seconds for name, seconds in best.items()}
 
 
 def print_table(metrics: dict[str, float]) -> None:
@@ -221,18 +259,33 @@ def main() -> None:
     parser.add_argument("--segmenter", type=Path, required=True, help="HorizonSegmenterSystem checkpoint")
     parser.add_argument("--data", type=Path, required=True, help="held-out dataset directory")
     parser.add_argument("--input-width", type=int, default=512)
+    parser.add_argument("--onnx", type=Path, nargs="+", default=[], metavar="BUNDLE",
+                        help="also time the chain in the deployment runtime on these horizon bundles")
+    parser.add_argument("--repeats", type=int, default=3, help="timed rounds of --onnx speed (best counts)")
+    parser.add_argument("--threads", type=int, default=1, help="CPU threads for torch, OpenCV and onnxruntime")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", type=Path, help="bar chart of the failure rates (PNG)")
     args = parser.parse_args()
+    from core.threads import set_cpu_threads
+
     try:
+        set_cpu_threads(args.threads)
         metrics = evaluate(args.finder, args.segmenter, args.data, args.input_width)
         metrics.update(evaluate_chain(args.finder, args.segmenter, args.data, args.input_width))
+        if args.onnx:
+            from models.builders import horizon_finder, horizon_segmenter
+
+            metrics.update(chain_speed(horizon_finder(ckpt=args.finder), horizon_segmenter(ckpt=args.segmenter),
+                                       args.onnx, args.data, args.input_width, args.repeats))
     except InputError as err:
         raise SystemExit(f"bench/horizon_networks.py: error: {err}") from err
     if args.json:
         print(json.dumps(metrics))
     else:
         print_table(metrics)
+        for key, value in metrics.items():
+            if key.startswith("speed/"):
+                print(f"{key}: {value:.2f}")
     if args.plot:
         plot_failures(metrics, args.plot)
 
