@@ -26,8 +26,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     model = p.add_argument_group("model: exactly one")
     model.add_argument("--ckpt", help="FRTMSegmentation or DAVOSSegmentation checkpoint from train.py (DAVOS overlays "
                        "show the regenerated distractor maps beside the masks)")
-    model.add_argument("--onnx", help="a VOS bundle (python -m export.vos_onnx), run by the torch-free runtime "
-                       "(runtime.vos)")
+    model.add_argument("--onnx", help="a VOS bundle (python -m export.vos_onnx or export.davos_onnx), run by the "
+                       "torch-free runtime (runtime.vos, runtime.davos)")
     p.add_argument("--out", required=True, help="output folder for palette PNG masks")
     p.add_argument("--overlay", help="also write an overlay video (e.g. out.mp4)")
 
@@ -37,7 +37,6 @@ def run(args: argparse.Namespace) -> int:
 
     from models.builders import vos_tracker
     from models.vos.inference import check_first_frame, segment_davis, segment_folder
-    from runtime.vos import OnnxFRTMTracker
 
     if args.davis is None and (args.video is None or args.mask is None):
         raise InputError("give --video DIR --mask FIRST.png, or --davis ROOT --split NAME")
@@ -49,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
         if args.onnx:
             from runtime.video_loop import segment_folder as runtime_segment_folder
 
-            n, seconds = runtime_segment_folder(OnnxFRTMTracker(args.onnx), args.video, args.mask, args.out)
+            n, seconds = runtime_segment_folder(_runtime_tracker(args.onnx), args.video, args.mask, args.out)
             print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
             return 0
         from data.vos.io import list_frames
@@ -60,8 +59,17 @@ def run(args: argparse.Namespace) -> int:
                                     annotations=args.annotations)
         print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS); masks in {args.out}")
         return 0
-    tracker = OnnxFRTMTracker(args.onnx) if args.onnx else vos_tracker(args.ckpt)
+    tracker = _runtime_tracker(args.onnx) if args.onnx else vos_tracker(args.ckpt)
     job = {"model": str(Path(args.ckpt or args.onnx).resolve())}
     result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames, job)
     print(json.dumps({"J&F": result["J&F-Mean"], "J": result["J-Mean"], "F": result["F-Mean"], "FPS": fps}))
     return 0
+
+
+def _runtime_tracker(bundle: str):
+    """The runtime's tracker of a ``vos`` (FRTM) or ``davos`` bundle."""
+    from runtime.bundle import bundle_task
+    from runtime.davos import OnnxDAVOSTracker
+    from runtime.vos import OnnxFRTMTracker
+
+    return OnnxDAVOSTracker(bundle) if bundle_task(bundle) == "davos" else OnnxFRTMTracker(bundle)

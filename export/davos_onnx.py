@@ -34,6 +34,7 @@ from core.command import CommandParser, run_command
 from core.errors import InputError
 from export.bundle import staged_bundle
 from export.onnx import OPSET, export_onnx
+from export.parity import mask_parity
 from models.vos.davos_net import DAVOSNet
 from models.vos.davos_tracker import DAVOSTracker
 from models.vos.memory import Memory, memory_insert
@@ -157,24 +158,6 @@ def export_bundle(tracker: DAVOSTracker, out: str | Path, height: int = 96, widt
     return Path(out)
 
 
-def mask_parity(tracker: DAVOSTracker, bundle: str | Path, videos: list[tuple[str, torch.Tensor, torch.Tensor]]
-                ) -> list[float]:
-    """Per frame and object IoU between the PyTorch tracker's and the runtime's masks, each run closed loop from
-    the first-frame labels; frames where neither segments the object are skipped (IoU undefined)."""
-    ious = []
-    runtime = OnnxDAVOSTracker(bundle)
-    for _, frames, labels in videos:
-        ids = [i for i in labels[0].unique().tolist() if i not in (0, 255)]
-        ref = [a.numpy() for a in tracker.segment(frames, {0: labels[0]})]
-        got = list(runtime.segment(frames.numpy(), {0: labels[0].numpy()}))
-        for a, b in zip(ref, got, strict=True):
-            for k in ids:
-                union = int(((a == k) | (b == k)).sum())
-                if union:
-                    ious.append(int(((a == k) & (b == k)).sum()) / union)
-    return ious
-
-
 def check_videos(args: argparse.Namespace) -> tuple[str, list]:
     """The ``--check`` videos: twin composites of ``--davis`` sequences, else synthetic look-alike videos."""
     from data.vos.composite_datamodule import held_out_composites, lookalike_videos
@@ -217,7 +200,7 @@ def _export_and_check(args: argparse.Namespace) -> None:
     print(f"wrote {args.out}")
     if args.check:
         what, videos = check_videos(args)
-        ious = np.array(mask_parity(tracker, args.out, videos))
+        ious = np.array(mask_parity(tracker, OnnxDAVOSTracker(args.out), videos))
         print(f"mask parity runtime vs PyTorch on {len(videos)} {what}: {len(ious)} frame-objects, IoU mean "
               f"{ious.mean():.4f}, min {ious.min():.4f}, below 0.99: {int((ious < 0.99).sum())}")
 

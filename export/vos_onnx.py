@@ -39,6 +39,7 @@ from core.errors import InputError
 from export.bundle import staged_bundle
 from export.int8 import RecordingGraph, quantize_bundle_graphs
 from export.onnx import OPSET, export_onnx
+from export.parity import mask_parity
 from models.vos.memory import Memory
 from models.vos.optimizer import SteepestDescent
 from models.vos.target_model import target_model_init
@@ -241,24 +242,6 @@ def export_bundle(tracker: FRTMTracker, out: str | Path, height: int = 96, width
     return report
 
 
-def mask_parity(tracker: FRTMTracker, bundle: str | Path, videos: Videos) -> list[float]:
-    """Per frame and object IoU between the PyTorch tracker's and the runtime's masks, each run closed loop (own
-    memory and filter updates) from the first-frame labels; frames where neither segments the object are skipped
-    (IoU undefined)."""
-    ious = []
-    runtime = OnnxFRTMTracker(bundle)
-    for _, frames, labels in videos:
-        ids = [i for i in labels[0].unique().tolist() if i not in (0, 255)]
-        ref = [a.numpy() for a in tracker.segment(frames, {0: labels[0]})]
-        got = list(runtime.segment(frames.numpy(), {0: labels[0].numpy()}))
-        for a, b in zip(ref, got, strict=True):
-            for k in ids:
-                union = int(((a == k) | (b == k)).sum())
-                if union:
-                    ious.append(int(((a == k) & (b == k)).sum()) / union)
-    return ious
-
-
 def main(argv: list[str] | None = None) -> int:
     p = CommandParser(prog="export.vos_onnx", description=__doc__,
                       formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -290,7 +273,7 @@ def _export_and_check(args: argparse.Namespace) -> None:
     report = export_bundle(tracker, args.out, args.height, args.width, args.int8, calibration, held_out)
     print(f"wrote {args.out}")
     if args.check:
-        ious = np.array(mask_parity(tracker, args.out, held_out))
+        ious = np.array(mask_parity(tracker, OnnxFRTMTracker(args.out), held_out))
         print(f"mask parity runtime vs PyTorch on {len(held_out)} held-out synthetic videos: {len(ious)} "
               f"frame-objects, IoU mean {ious.mean():.4f}, min {ious.min():.4f}, below 0.99: "
               f"{int((ious < 0.99).sum())}")

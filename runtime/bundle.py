@@ -67,6 +67,19 @@ def write_manifest(folder: str | Path, task: str, opset: int, precision: str = "
     return write_text(folder / MANIFEST, json.dumps(manifest, indent=1))
 
 
+def bundle_task(path: str | Path) -> str:
+    """The task a bundle folder's manifest names (not yet checked: ``Bundle`` does that); ``InputError`` when the
+    folder holds no readable manifest."""
+    file = Path(path) / MANIFEST
+    try:
+        task = json.loads(file.read_text()).get("task")
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError, AttributeError) as err:
+        raise InputError(f"{path} is not a deployment bundle: {file} cannot be read ({err})") from err
+    if task not in TASK_GRAPHS:
+        raise InputError(f"bundle {path} names an unknown task {task!r}; known: {', '.join(TASK_GRAPHS)}")
+    return task
+
+
 class Bundle:
     """A checked deployment bundle of ``task``.
 

@@ -4,17 +4,20 @@ feeds the result back, and writing a video's masks as palette PNGs."""
 
 from __future__ import annotations
 
+import argparse
 import os
 import shutil
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import numpy as np
 
+from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import writable_folder
+from runtime.bundle import add_runtime_arguments
 from runtime.vos_io import list_frames, read_frame, read_mask, write_mask
 
 
@@ -124,3 +127,22 @@ def segment_folder(tracker: NumpyVideoLoop, video: str | Path, mask_path: str | 
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return len(frames), seconds
+
+
+def video_command(prog: str, description: str, make_tracker: Callable[..., NumpyVideoLoop],
+                  argv: list[str] | None = None) -> int:
+    """The command line of a VOS runtime task: ``--bundle``, ``--threads``, ``--provider``, ``--video``, ``--mask``,
+    ``--out``; ``make_tracker(bundle, threads, provider)`` builds the tracker. Returns the exit code."""
+    parser = CommandParser(prog=prog, description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_runtime_arguments(parser)
+    parser.add_argument("--video", type=Path, required=True, help="folder of frames (sorted by name)")
+    parser.add_argument("--mask", type=Path, required=True, help="first-frame mask PNG (palette ids or binary gray)")
+    parser.add_argument("--out", type=Path, required=True, help="output folder for the palette PNG masks")
+    args = parser.parse_args(argv)
+
+    def run() -> None:
+        tracker = make_tracker(args.bundle, args.threads, args.provider)
+        n, seconds = segment_folder(tracker, args.video, args.mask, args.out)
+        print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
+
+    return run_command(prog, run)

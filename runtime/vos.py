@@ -14,19 +14,17 @@ once when every frame was segmented.
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 
-from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.first_frame_augment import first_frame_augment
 from runtime.area import area_resize
-from runtime.bundle import Bundle, add_runtime_arguments
-from runtime.video_loop import NumpyVideoLoop, segment_folder
+from runtime.bundle import Bundle
+from runtime.video_loop import NumpyVideoLoop, video_command
 
 #: Clamp of the per-object probabilities in the soft aggregation (``models.vos.merge``).
 EPS = 1e-7
@@ -175,20 +173,7 @@ class OnnxFRTMTracker(NumpyVideoLoop):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = CommandParser(prog="runtime.vos", description=__doc__,
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_runtime_arguments(parser)
-    parser.add_argument("--video", type=Path, required=True, help="folder of frames (sorted by name)")
-    parser.add_argument("--mask", type=Path, required=True, help="first-frame mask PNG (palette ids or binary gray)")
-    parser.add_argument("--out", type=Path, required=True, help="output folder for the palette PNG masks")
-    args = parser.parse_args(argv)
-
-    def run() -> None:
-        tracker = OnnxFRTMTracker(args.bundle, args.threads, args.provider)
-        n, seconds = segment_folder(tracker, args.video, args.mask, args.out)
-        print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
-
-    return run_command("runtime.vos", run)
+    return video_command("runtime.vos", __doc__, OnnxFRTMTracker, argv)
 
 
 if __name__ == "__main__":

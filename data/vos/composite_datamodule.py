@@ -4,13 +4,12 @@ themselves and synthetic look-alike videos, mixed per sample; held-out composite
 
 from __future__ import annotations
 
-import lightning as L
 import torch
-from torch.utils.data import DataLoader
+from torch.utils.data import Dataset
 
 from core.errors import InputError
 from data.vos.composites import compose, composite_video, random_pastes
-from data.vos.datamodule import SequenceTrainingSamples, VideoDataset, first_item, synthetic_videos, training_sample
+from data.vos.datamodule import SequenceTrainingSamples, VideoDataModule, Videos, synthetic_videos, training_sample
 from data.vos.davis import davis_sequences
 from data.vos.io import VOSSequence
 from data.vos.synthetic import synthetic_video, synthetic_video_seeds
@@ -119,7 +118,7 @@ def lookalike_videos(n_videos: int, seed: int = 0, n_frames: int = 40, height: i
                             n_objects=n_objects, n_distractors=1, lookalike=True, object_scale=(0.1, 0.25))
 
 
-class CompositeVOSDataModule(L.LightningDataModule):
+class CompositeVOSDataModule(VideoDataModule):
     """Composite multi-object data from a DAVIS-layout root (DAVIS 2016 here): ``CompositeTrainingSamples`` of
     ``train_sequences``; validation and test on held-out composites (``eval_set``) of ``val_sequences`` only.
 
@@ -156,24 +155,16 @@ class CompositeVOSDataModule(L.LightningDataModule):
         super().__init__()
         self.save_hyperparameters()
 
-    def train_dataloader(self) -> DataLoader:
+    def training_samples(self) -> Dataset:
         h = self.hparams
         seqs = davis_sequences(h.root, h.split, h.resolution, h.train_sequences)
-        ds = CompositeTrainingSamples(seqs, h.train_samples, h.mix, h.max_extra, h.synthetic_size,
-                                      n_test_frames=h.n_test_frames, max_gap=h.max_gap, min_pixels=h.min_pixels,
-                                      hflip=h.hflip, seed=h.seed, crop=h.crop)
-        return DataLoader(ds, batch_size=h.batch_size, shuffle=True, num_workers=h.num_workers, drop_last=True)
+        return CompositeTrainingSamples(seqs, h.train_samples, h.mix, h.max_extra, h.synthetic_size,
+                                        n_test_frames=h.n_test_frames, max_gap=h.max_gap, min_pixels=h.min_pixels,
+                                        hflip=h.hflip, seed=h.seed, crop=h.crop)
 
-    def _videos(self) -> DataLoader:
+    def evaluation_videos(self, stage: str) -> Videos:
         h = self.hparams
         if not h.val_sequences:
             raise InputError("CompositeVOSDataModule needs val_sequences to evaluate on")
         seqs = davis_sequences(h.root, h.split, h.resolution, h.val_sequences)
-        videos = held_out_composites(seqs, h.eval_set, h.seed, h.val_max_frames)
-        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=first_item)
-
-    def val_dataloader(self) -> DataLoader:
-        return self._videos()
-
-    def test_dataloader(self) -> DataLoader:
-        return self._videos()
+        return held_out_composites(seqs, h.eval_set, h.seed, h.val_max_frames)

@@ -182,7 +182,33 @@ def synthetic_videos(
     return out
 
 
-class SyntheticVOSDataModule(L.LightningDataModule):
+Videos = list[tuple[str, torch.Tensor, torch.Tensor]]
+
+
+class VideoDataModule(L.LightningDataModule):
+    """Base of the VOS DataModules: shuffled batches of ``training_samples()`` (``batch_size``, ``num_workers``
+    hyper-parameters) for training, whole ``evaluation_videos(stage)`` (name, frames uint8, labels) one at a time
+    for validation and test."""
+
+    def training_samples(self) -> Dataset:
+        raise NotImplementedError
+
+    def evaluation_videos(self, stage: str) -> Videos:
+        raise NotImplementedError
+
+    def train_dataloader(self) -> DataLoader:
+        h = self.hparams
+        return DataLoader(self.training_samples(), batch_size=h.batch_size, shuffle=True, num_workers=h.num_workers,
+                          drop_last=True)
+
+    def val_dataloader(self) -> DataLoader:
+        return DataLoader(VideoDataset(self.evaluation_videos("val")), batch_size=1, collate_fn=first_item)
+
+    def test_dataloader(self) -> DataLoader:
+        return DataLoader(VideoDataset(self.evaluation_videos("test")), batch_size=1, collate_fn=first_item)
+
+
+class SyntheticVOSDataModule(VideoDataModule):
     """Synthetic videos: training samples from fresh videos, validation/test on disjoint seeds.
 
     Args:
@@ -220,25 +246,18 @@ class SyntheticVOSDataModule(L.LightningDataModule):
         return {"height": h.height, "width": h.width, "n_objects": n_objects, "n_distractors": h.n_distractors,
                 "object_scale": tuple(h.object_scale)}
 
-    def train_dataloader(self) -> DataLoader:
+    def training_samples(self) -> Dataset:
         h = self.hparams
-        video = self._video_args(h.n_objects)
-        ds = SyntheticTrainingSamples(h.train_samples, h.n_test_frames, h.max_gap, h.seed, **video)
-        return DataLoader(ds, batch_size=h.batch_size, shuffle=True, num_workers=h.num_workers, drop_last=True)
+        return SyntheticTrainingSamples(h.train_samples, h.n_test_frames, h.max_gap, h.seed,
+                                        **self._video_args(h.n_objects))
 
-    def _videos(self, split: str, n: int) -> DataLoader:
+    def evaluation_videos(self, stage: str) -> Videos:
         h = self.hparams
-        videos = synthetic_videos(split, n, h.seed, n_frames=h.n_frames, **self._video_args(h.eval_objects))
-        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=first_item)
-
-    def val_dataloader(self) -> DataLoader:
-        return self._videos("val", self.hparams.val_videos)
-
-    def test_dataloader(self) -> DataLoader:
-        return self._videos("test", self.hparams.test_videos)
+        n = h.val_videos if stage == "val" else h.test_videos
+        return synthetic_videos(stage, n, h.seed, n_frames=h.n_frames, **self._video_args(h.eval_objects))
 
 
-class DavisVOSDataModule(L.LightningDataModule):
+class DavisVOSDataModule(VideoDataModule):
     """DAVIS-layout data: training samples from ``train_sequences`` of ``train_split``; validation/test on
     ``val_sequences`` (of ``val_split``). Sequence lists default to the whole split.
 
@@ -274,23 +293,16 @@ class DavisVOSDataModule(L.LightningDataModule):
         h = self.hparams
         return davis_sequences(h.root, split, h.resolution, names)
 
-    def train_dataloader(self) -> DataLoader:
+    def training_samples(self) -> Dataset:
         h = self.hparams
         seqs = self._sequences(h.train_split, h.train_sequences)
-        ds = SequenceTrainingSamples(seqs, h.train_samples, h.n_test_frames, h.max_gap, scale=h.scale, hflip=h.hflip,
-                                     seed=h.seed)
-        return DataLoader(ds, batch_size=h.batch_size, shuffle=True, num_workers=h.num_workers, drop_last=True)
+        return SequenceTrainingSamples(seqs, h.train_samples, h.n_test_frames, h.max_gap, scale=h.scale,
+                                       hflip=h.hflip, seed=h.seed)
 
-    def _videos(self) -> DataLoader:
+    def evaluation_videos(self, stage: str) -> Videos:
         h = self.hparams
         videos = []
         for seq in self._sequences(h.val_split, h.val_sequences):
             frames, labels = seq.load(h.val_max_frames)
             videos.append((seq.name, *_resize_video(frames, labels, h.scale)))
-        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=first_item)
-
-    def val_dataloader(self) -> DataLoader:
-        return self._videos()
-
-    def test_dataloader(self) -> DataLoader:
-        return self._videos()
+        return videos

@@ -5,15 +5,14 @@ challenge server only)."""
 
 from __future__ import annotations
 
-import lightning as L
-from torch.utils.data import DataLoader
+from torch.utils.data import Dataset
 
 from core.errors import InputError
-from data.vos.datamodule import SequenceTrainingSamples, VideoDataset, first_item
+from data.vos.datamodule import SequenceTrainingSamples, VideoDataModule, Videos
 from data.vos.ytvos import ytvos_sequences
 
 
-class YouTubeVOSDataModule(L.LightningDataModule):
+class YouTubeVOSDataModule(VideoDataModule):
     """YouTube-VOS layout data (``ROOT/train/JPEGImages``, ``Annotations``, ``meta.json``).
 
     Args:
@@ -51,21 +50,10 @@ class YouTubeVOSDataModule(L.LightningDataModule):
                              "would leave none for training")
         return videos[: len(videos) - h.val_videos], videos[len(videos) - h.val_videos :]
 
-    def train_dataloader(self) -> DataLoader:
+    def training_samples(self) -> Dataset:
         h = self.hparams
-        ds = SequenceTrainingSamples(self._split()[0], h.train_samples, h.n_test_frames, h.max_gap, h.min_pixels,
-                                     hflip=h.hflip, seed=h.seed, crop=h.crop)
-        return DataLoader(ds, batch_size=h.batch_size, shuffle=True, num_workers=h.num_workers, drop_last=True)
+        return SequenceTrainingSamples(self._split()[0], h.train_samples, h.n_test_frames, h.max_gap, h.min_pixels,
+                                       hflip=h.hflip, seed=h.seed, crop=h.crop)
 
-    def _videos(self) -> DataLoader:
-        videos = []
-        for seq in self._split()[1]:
-            frames, labels = seq.load(self.hparams.val_max_frames)
-            videos.append((seq.name, frames, labels))
-        return DataLoader(VideoDataset(videos), batch_size=1, collate_fn=first_item)
-
-    def val_dataloader(self) -> DataLoader:
-        return self._videos()
-
-    def test_dataloader(self) -> DataLoader:
-        return self._videos()
+    def evaluation_videos(self, stage: str) -> Videos:
+        return [(seq.name, *seq.load(self.hparams.val_max_frames)) for seq in self._split()[1]]

@@ -7,8 +7,9 @@ import pytest
 import torch
 
 from data.vos.composite_datamodule import lookalike_videos
-from export.davos_onnx import mask_parity
+from export.parity import mask_parity
 from runtime.bundle import Bundle
+from runtime.davos import OnnxDAVOSTracker
 
 
 @pytest.mark.slow  # uses an exported bundle
@@ -38,5 +39,5 @@ def test_graphs_match_pytorch_and_the_manifest_holds_the_settings(davos_setup) -
 @pytest.mark.slow  # uses an exported bundle
 def test_masks_match_pytorch_on_lookalike_videos(davos_setup) -> None:
     videos = lookalike_videos(1, seed=5, n_frames=6, height=64, width=96, n_objects=3)
-    ious = mask_parity(davos_setup["tracker"], davos_setup["bundle"], videos)
+    ious = mask_parity(davos_setup["tracker"], OnnxDAVOSTracker(davos_setup["bundle"]), videos)
     assert len(ious) >= 12 and min(ious) >= 0.99

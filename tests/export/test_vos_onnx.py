@@ -7,9 +7,11 @@ import pytest
 import torch
 
 from data.vos.synthetic import synthetic_video
-from export.vos_onnx import apply_filter_per_object, mask_parity
+from export.parity import mask_parity
+from export.vos_onnx import apply_filter_per_object
 from models.vos.target_model import apply_filter
 from runtime.bundle import Bundle
+from runtime.vos import OnnxFRTMTracker
 
 
 def test_per_object_filter_equals_grouped_conv() -> None:
@@ -43,5 +45,6 @@ def test_graph_parity(vos_setup) -> None:
 @pytest.mark.slow
 def test_mask_parity(vos_setup) -> None:
     frames, labels = synthetic_video(5, n_frames=6, height=64, width=96, n_objects=2)
-    ious = mask_parity(vos_setup["tracker"], vos_setup["bundle"], [("v", (frames * 255).round().byte(), labels)])
+    videos = [("v", (frames * 255).round().byte(), labels)]
+    ious = mask_parity(vos_setup["tracker"], OnnxFRTMTracker(vos_setup["bundle"]), videos)
     assert len(ious) >= 6 and min(ious) >= 0.99
