@@ -14,7 +14,8 @@ DEMOS = {"triangulation": ("bench.triangulation", "Triangulation (thesis ch. 2)"
          "horizon_labels": ("bench.horizon_labels", "Horizon labels: the classical pipeline (ch. 4.2)"),
          "horizon_networks": ("bench.horizon_networks", "Horizon networks (ch. 4.3)"),
          "localization": ("bench.localization", "Localisation on a filter bank (ch. 4.4)"),
-         "vos": ("bench.vos", "Video object segmentation: FRTM (ch. 5)")}
+         "vos": ("bench.vos", "Video object segmentation: FRTM (ch. 5)"),
+         "davos": ("bench.davos_demo", "Distractor-aware video object segmentation: DAVOS (ch. 6)")}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -216,6 +216,7 @@ class SyntheticVOSDataModule(VideoDataModule):
         n_frames: frames of evaluation videos; height, width: frame size.
         n_objects / n_distractors: per video (training samples pick one object).
         object_scale: (low, high) object radius as a fraction of the short side (``synthetic_video``).
+        lookalike: the labelled objects are look-alikes of the first (``synthetic_video``; distractor-aware VOS).
         eval_objects: objects per evaluation video.
         max_gap: test frames are drawn from the ``max_gap`` frames after the reference.
     """
@@ -231,6 +232,7 @@ class SyntheticVOSDataModule(VideoDataModule):
         n_objects: int = 1,
         n_distractors: int = 1,
         object_scale: tuple[float, float] = (0.15, 0.3),
+        lookalike: bool = False,
         eval_objects: int = 1,
         max_gap: int = 8,
         n_test_frames: int = 2,
@@ -244,7 +246,7 @@ class SyntheticVOSDataModule(VideoDataModule):
     def _video_args(self, n_objects: int) -> dict:
         h = self.hparams
         return {"height": h.height, "width": h.width, "n_objects": n_objects, "n_distractors": h.n_distractors,
-                "object_scale": tuple(h.object_scale)}
+                "object_scale": tuple(h.object_scale), "lookalike": h.lookalike}
 
     def training_samples(self) -> Dataset:
         h = self.hparams
