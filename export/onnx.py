@@ -24,8 +24,14 @@ def export_onnx(
     input_names: Sequence[str],
     output_names: Sequence[str],
     dynamic_shapes: Any = None,
+    optimize: bool = True,
 ) -> Path:
     """Export ``model(*args)`` to ``path`` (dynamo exporter, opset 20), check it, and return the path.
+
+    ``optimize`` runs onnxscript's graph optimizer (constant folding, pattern rewrites). Its pattern matching grows
+    much faster than linearly with the graph: the unrolled Gauss-Newton/CG graphs of FRTM at the paper's schedule
+    (tens of thousands of nodes) did not finish in 50 minutes, so they are exported without it (onnxruntime still
+    optimises every graph when it loads it).
 
     The graph is written beside ``path`` under a temporary name and renamed only after ``onnx.checker`` passed,
     so a failed export leaves no file behind.
@@ -42,6 +48,7 @@ def export_onnx(
         input_names=list(input_names),
         output_names=list(output_names),
         dynamic_shapes=dynamic_shapes,
+        optimize=optimize,
         external_data=False,
         verbose=False,
     )

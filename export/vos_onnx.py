@@ -170,7 +170,8 @@ def _export_graphs(tracker: FRTMTracker, out: Path, height: int, width: int) -> 
     export_onnx(InitGraph(tracker), (rnd(1, n_aug, d, h, w), rnd(1, n_aug, lh, lw), rnd(1, n_aug, lh, lw) + 0.5,
                                      rnd(1, n_aug)),
                 out / "init.onnx", ["x", "labels", "pixel_weights", "gamma"], ["wp", "wf"],
-                dynamic_shapes=({1: kd, 3: fh, 4: fw}, {1: kd, 2: lbh, 3: lbw}, {1: kd, 2: lbh, 3: lbw}, {1: kd}))
+                dynamic_shapes=({1: kd, 3: fh, 4: fw}, {1: kd, 2: lbh, 3: lbw}, {1: kd, 2: lbh, 3: lbw}, {1: kd}),
+                optimize=False)  # the unrolled optimiser: see export_onnx
     mem = (rnd(1, n_mem, c, h, w), rnd(1, n_mem, lh, lw), rnd(1, n_mem, lh, lw), rnd(1, n_mem),
            torch.tensor([1]))
     export_onnx(InsertGraph(tracker), (*mem, rnd(1, c, h, w), rnd(1, lh, lw)), out / "insert.onnx",
@@ -182,7 +183,7 @@ def _export_graphs(tracker: FRTMTracker, out: Path, height: int, width: int) -> 
                 out / "update.onnx", ["features", "labels", "pixel_weights", "weights", "wf", "p", "rho", "r_prev"],
                 ["wf_out", "p_out", "rho_out", "r_prev_out"],
                 dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md},
-                                None, None, None, None))
+                                None, None, None, None), optimize=False)
 
 
 def _sections(tracker: FRTMTracker) -> dict:
