@@ -266,7 +266,8 @@ class DavisVOSDataModule(VideoDataModule):
     Args:
         root: DAVIS root (``../shared/data/davis2016`` here); resolution: folder such as ``240p`` or ``480p``.
         scale: resize factor applied to frames and masks after loading (1 = as stored).
-        hflip: probability of mirroring a training sample left-right.
+        hflip: probability of mirroring a training sample left-right; crop: (h, w) training windows around the
+            target (``SequenceTrainingSamples``).
         val_max_frames: cut evaluation videos to this many frames (None = all).
     """
 
@@ -283,6 +284,7 @@ class DavisVOSDataModule(VideoDataModule):
         n_test_frames: int = 2,
         scale: float = 1.0,
         hflip: float = 0.0,
+        crop: tuple[int, int] | None = None,
         val_max_frames: int | None = None,
         batch_size: int = 4,
         num_workers: int = 0,
@@ -299,7 +301,7 @@ class DavisVOSDataModule(VideoDataModule):
         h = self.hparams
         seqs = self._sequences(h.train_split, h.train_sequences)
         return SequenceTrainingSamples(seqs, h.train_samples, h.n_test_frames, h.max_gap, scale=h.scale,
-                                       hflip=h.hflip, seed=h.seed)
+                                       hflip=h.hflip, seed=h.seed, crop=h.crop)
 
     def evaluation_videos(self, stage: str) -> Videos:
         h = self.hparams
