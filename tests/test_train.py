@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 import torch
 
+import train
 from data.horizon.dataset import DatasetSettings, write_dataset
 from data.world.dem import generate_archipelago
 from models.horizon.lit import HorizonFinderSystem
@@ -128,3 +129,21 @@ def test_killed_fit_resumes_from_last_ckpt(finder_config, tmp_path) -> None:
     second = torch.load(last, weights_only=False)
     assert "Restoring states from the checkpoint path" in output and first["epoch"] == 0
     assert second["epoch"] == 1 and second["global_step"] == 2 * first["global_step"] > 0
+
+
+@pytest.mark.parametrize("config", sorted(str(p) for p in Path("configs").rglob("*.yaml")
+                                          if p.parent.name != "ablations" and p.name != "ddp.yaml"))
+def test_every_config_parses(config: str, capsys) -> None:
+    """Every shipped config resolves to a known model and data module (LightningCLI --print_config)."""
+    with pytest.raises(SystemExit) as stop:
+        train.main(["fit", "--config", config, "--print_config"])
+    assert stop.value.code in (0, None) and "class_path" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("overlay", sorted(str(p) for p in Path("configs/ablations").glob("*.yaml")))
+def test_ablation_overlays_parse_over_the_davos_config(overlay: str, capsys) -> None:
+    with pytest.raises(SystemExit):
+        train.main(["fit", "--config", "configs/davos_davis2016_cpu.yaml", "--config", overlay, "--print_config"])
+    out = capsys.readouterr().out
+    assert ("distractors: false" in out) == overlay.endswith("lwl.yaml")
+    assert ("soft_loss: false" in out) == overlay.endswith("hard_loss.yaml")
