@@ -62,12 +62,15 @@ def onnx_tracker(bundle: str) -> Callable[[], object]:
     return lambda: OnnxFRTMTracker(bundle, threads=torch.get_num_threads())
 
 
-def run_method(make_tracker: Callable[[], object] | None, videos: list[tuple[str, torch.Tensor, torch.Tensor]]) -> dict:
+def run_method(make_tracker: Callable[[], object] | None, videos: list[tuple[str, torch.Tensor, torch.Tensor]],
+               label: str = "") -> dict:
     """Segment ``videos`` (name, frames uint8, labels) with the trackers of ``make_tracker`` (None: the first mask
-    copied); J&F statistics, FPS and ms/frame."""
+    copied); J&F statistics, FPS and ms/frame. A progress bar named ``label`` goes to a terminal's stderr."""
+    from tqdm import tqdm
+
     per_seq, frames_total, seconds = {}, 0, 0.0
     timings = dict.fromkeys(COMPONENTS, 0.0)
-    for name, frames, labels in videos:
+    for name, frames, labels in tqdm(videos, desc=label or "videos", unit="video", disable=None, leave=False):
         start = time.perf_counter()
         if make_tracker is None:
             pred = labels[:1].expand_as(labels).clone()
@@ -236,7 +239,7 @@ def run(args: argparse.Namespace) -> dict:
     if args.davis or args.synthetic or args.lookalike or not args.speed:
         result["dataset"], videos = load_videos(args)
         for method, make_tracker in factories.items():
-            result["methods"][method] = run_method(make_tracker, videos)
+            result["methods"][method] = run_method(make_tracker, videos, method)
     if args.speed:
         models = {name: f for name, f in factories.items() if f is not None and name != "target_model_only"}
         models.update({Path(c).stem: frtm_system(config=c).make_tracker for c in args.speed_config or []})
