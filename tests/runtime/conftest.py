@@ -1,5 +1,7 @@
 """Running the runtime's commands in a subprocess in which torch (and torchvision, Lightning, kornia) cannot be
-imported: a meta-path finder installed before the command module runs refuses them."""
+imported: a meta-path finder installed before the command module runs refuses them. With ``RUNTIME_PYTHON`` set
+to the interpreter of a venv that holds only ``.[runtime]`` (no torch at all), the commands run there instead:
+``RUNTIME_PYTHON=/path/to/venv/bin/python pytest tests/runtime``."""
 
 import os
 import subprocess
@@ -26,9 +28,11 @@ runpy.run_module(module, run_name="__main__", alter_sys=True)
 
 
 def run_torch_free(module: str, *args) -> subprocess.CompletedProcess:
-    """``python -m module args`` with torch blocked, from the repository root, one thread."""
+    """``python -m module args`` with torch blocked, from the repository root, one thread, by ``RUNTIME_PYTHON``
+    (default: this interpreter)."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-c", TORCH_FREE, module, *map(str, args)], cwd=ROOT, env=env,
+    python = os.environ.get("RUNTIME_PYTHON", sys.executable)
+    return subprocess.run([python, "-c", TORCH_FREE, module, *map(str, args)], cwd=ROOT, env=env,
                           capture_output=True, text=True)
 
 
