@@ -22,6 +22,25 @@ from torch import nn
 from core.errors import InputError
 
 
+def _area_weights(size_in: int, size_out: int, like: torch.Tensor) -> torch.Tensor:
+    """(size_out, size_in) row-stochastic matrix of adaptive average pooling's bins: output i averages inputs
+    floor(i size_in / size_out) .. ceil((i + 1) size_in / size_out) - 1."""
+    i = torch.arange(size_out, device=like.device)
+    start = (i * size_in) // size_out
+    end = ((i + 1) * size_in + size_out - 1) // size_out
+    j = torch.arange(size_in, device=like.device)
+    inside = ((j >= start[:, None]) & (j < end[:, None])).to(like.dtype)
+    return inside / inside.sum(1, keepdim=True)
+
+
+def area_resize(x: torch.Tensor, size: tuple[int, int]) -> torch.Tensor:
+    """``F.interpolate(x, size, mode="area")`` (adaptive average pooling) as two matrix products, so that an ONNX
+    graph keeps its bins right at every input size: (N, C, H, W) -> (N, C, h, w)."""
+    rows = _area_weights(x.shape[-2], size[0], x)
+    cols = _area_weights(x.shape[-1], size[1], x)
+    return rows @ x @ cols.transpose(0, 1)
+
+
 class ResidualBlock(nn.Module):
     """x -> ReLU(conv3(ReLU(conv3(x))) + shortcut(x)); the shortcut is a strided 1x1 convolution when the
     stride or the width changes."""
@@ -79,5 +98,5 @@ class LabelEncoder(nn.Module):
             h = F.interpolate(h, size=size, mode="bilinear", align_corners=False)
         encoding = F.relu(self.encoding(h))
         if self.pass_labels:
-            encoding = torch.cat([F.interpolate(labels, size=h.shape[-2:], mode="area"), encoding], 1)
+            encoding = torch.cat([area_resize(labels, h.shape[-2:]), encoding], 1)
         return encoding, self.weighting(h)

@@ -32,6 +32,12 @@ def test_graphs_match_pytorch_and_the_manifest_holds_the_settings(davos_setup) -
     got_logits, got_x = bundle.graph("frame")(image.numpy(), tau.numpy())
     np.testing.assert_allclose(got_x, x.numpy(), rtol=1e-4, atol=1e-5)
     np.testing.assert_allclose(got_logits, logits.numpy(), rtol=1e-4, atol=1e-4)
+    odd = torch.rand(3, 2, 75, 91, generator=g)  # sizes that are no multiple of the stride
+    with torch.no_grad():
+        odd_enc, odd_wts = net.label_encoder(odd)
+    got_enc, got_wts = bundle.graph("encode")(odd.numpy())
+    np.testing.assert_allclose(got_enc, odd_enc.numpy(), rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(got_wts, odd_wts.numpy(), rtol=1e-4, atol=1e-5)
     got_fit = bundle.graph("fit_update")(tau[:1].numpy(), *(t.contiguous().numpy() for t in memory))
     np.testing.assert_allclose(got_fit, fitted.numpy(), rtol=1e-4, atol=1e-5)
 

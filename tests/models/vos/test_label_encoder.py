@@ -1,10 +1,11 @@
-"""Label encoder: output strides, the initial weights W(y) = 1, E(y) >= 0, gradients, input checks."""
+"""Label encoder: output strides, the initial weights W(y) = 1, E(y) >= 0, gradients, input checks; the area
+resize against brute-force bin means."""
 
 import pytest
 import torch
 
 from core.errors import InputError
-from models.vos.label_encoder import LabelEncoder
+from models.vos.label_encoder import LabelEncoder, area_resize
 
 
 @pytest.mark.parametrize(("stride", "size", "out"), [(8, (240, 427), (30, 54)), (16, (240, 427), (15, 27)),
@@ -30,3 +31,17 @@ def test_bad_input() -> None:
         LabelEncoder(2, 16, 4)
     with pytest.raises(InputError, match=r"\(N, 2, H, W\)"):
         LabelEncoder(2, 16, 8)(torch.rand(1, 1, 32, 32), (4, 4))
+
+
+@pytest.mark.parametrize(("size", "out"), [((240, 427), (30, 54)), ((9, 13), (2, 3)), ((64, 96), (8, 12)),
+                                           ((5, 7), (5, 7))])
+def test_area_resize_is_the_mean_over_adaptive_pooling_bins(size: tuple, out: tuple) -> None:
+    x = torch.rand(2, 3, *size, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
+    ref = torch.empty(2, 3, *out, dtype=torch.float64)
+    for i in range(out[0]):
+        r0, r1 = (i * size[0]) // out[0], -(-((i + 1) * size[0]) // out[0])
+        for j in range(out[1]):
+            c0, c1 = (j * size[1]) // out[1], -(-((j + 1) * size[1]) // out[1])
+            ref[..., i, j] = x[..., r0:r1, c0:c1].mean((-2, -1))
+    torch.testing.assert_close(area_resize(x, out), ref, rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(area_resize(x.float(), out), ref.float(), rtol=1e-5, atol=1e-6)
