@@ -2,7 +2,7 @@
 memory, CG state) outside the graphs, run by ``runtime.vos.OnnxFRTMTracker``.
 
     python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check] [--check-videos N]
-                              [--int8 [--calibration-videos N]]
+                              [--int8 [--calibration-videos N | --calibration-davis ROOT --calibration-sequences A,B]]
 
 Graphs (dynamo exporter, opset 20; H, W, the number of objects N, samples K and memory slots M dynamic):
 
@@ -18,8 +18,9 @@ The per-object graphs (init, insert, update) take one object (B = 1, grouped con
 count); the runtime loops over objects. ``bundle.json`` holds the tracker settings (``FRTMSettings``).
 ``--check`` compares the runtime's masks with the PyTorch tracker's on held-out synthetic videos (IoU per frame
 and object). ``--int8`` replaces the frame and features graphs (backbone, decoder) by static int8 QDQ versions
-calibrated on synthetic validation videos (``export.int8``; the optimiser graphs stay float32) and stores J&F of
-both versions on held-out synthetic videos in the manifest.
+calibrated on synthetic validation videos, or on real frames with ``--calibration-davis`` (DAVIS sequences of the
+checkpoint's training split, never the held-out ones; ``export.int8``; the optimiser graphs stay float32), and
+stores J&F of both versions on held-out synthetic videos in the manifest.
 """
 
 from __future__ import annotations
@@ -212,6 +213,15 @@ def videos_jf(tracker: OnnxFRTMTracker, videos: Videos) -> float:
     return float(summarize(per_seq)["J&F-Mean"]) * 100
 
 
+def davis_videos(root: str | Path, names: list[str], n_frames: int, split: str = "train",
+                 resolution: str = "240p") -> Videos:
+    """The first ``n_frames`` of the DAVIS sequences ``names`` (name, frames uint8 (T, 3, H, W), labels (T, H, W)):
+    real calibration frames for an int8 export."""
+    from data.vos.davis import davis_sequences
+
+    return [(seq.name, *seq.load(n_frames)) for seq in davis_sequences(root, split, resolution, names)]
+
+
 @torch.no_grad()
 def export_bundle(tracker: FRTMTracker, out: str | Path, height: int = 96, width: int = 160, int8: bool = False,
                   calibration: Videos | None = None, held_out: Videos | None = None) -> dict:
@@ -257,6 +267,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--check-frames", type=int, default=20, help="frames per held-out video")
     p.add_argument("--int8", action="store_true", help="int8 frame and features graphs, with a J&F report")
     p.add_argument("--calibration-videos", type=int, default=4, help="synthetic validation videos to calibrate on")
+    p.add_argument("--calibration-davis", metavar="ROOT",
+                   help="calibrate on real DAVIS frames instead (with --calibration-sequences)")
+    p.add_argument("--calibration-sequences", default="bear,boat,dog-agility,kite-walk",
+                   help="comma-separated DAVIS sequences to calibrate on (training sequences, not held-out ones)")
+    p.add_argument("--calibration-split", default="train", help="DAVIS ImageSets split of those sequences")
+    p.add_argument("--calibration-resolution", default="240p", help="DAVIS resolution folder")
     args = p.parse_args(argv)
     return run_command("export.vos_onnx", lambda: _export_and_check(args))
 
@@ -269,8 +285,13 @@ def _export_and_check(args: argparse.Namespace) -> None:
     tracker = frtm_tracker(ckpt=args.ckpt)
     need = args.check or args.int8
     held_out = checkpoint_test_videos(args.ckpt, args.check_videos if need else 0, args.check_frames)
-    calibration = (synthetic_videos("val", args.calibration_videos, 0, n_frames=args.check_frames,
-                                    **synthetic_test_settings(args.ckpt)) if args.int8 else None)
+    calibration = None
+    if args.int8 and args.calibration_davis:
+        calibration = davis_videos(args.calibration_davis, args.calibration_sequences.split(","),
+                                   args.check_frames, args.calibration_split, args.calibration_resolution)
+    elif args.int8:
+        calibration = synthetic_videos("val", args.calibration_videos, 0, n_frames=args.check_frames,
+                                       **synthetic_test_settings(args.ckpt))
     report = export_bundle(tracker, args.out, args.height, args.width, args.int8, calibration, held_out)
     print(f"wrote {args.out}")
     if args.check:

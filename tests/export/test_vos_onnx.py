@@ -1,14 +1,15 @@
 """The VOS bundle: the per-object filter of the graphs, onnxruntime parity of the frame and init graphs (rtol 1e-4;
 the init graph starts from the tracker's seeded filters), the mask parity of the runtime against PyTorch, the
-manifest's settings."""
+manifest's settings; an int8 export calibrated on real DAVIS frames."""
 
 import numpy as np
 import pytest
 import torch
 
+from core.errors import InputError
 from data.vos.synthetic import synthetic_video
 from export.parity import mask_parity
-from export.vos_onnx import apply_filter_per_object
+from export.vos_onnx import apply_filter_per_object, davis_videos, export_bundle
 from models.vos.target_model import apply_filter
 from runtime.bundle import Bundle
 from runtime.vos import OnnxFRTMTracker
@@ -48,3 +49,21 @@ def test_mask_parity(vos_setup) -> None:
     videos = [("v", (frames * 255).round().byte(), labels)]
     ious = mask_parity(vos_setup["tracker"], OnnxFRTMTracker(vos_setup["bundle"]), videos)
     assert len(ious) >= 6 and min(ious) >= 0.99
+
+
+@pytest.mark.slow
+def test_int8_export_calibrated_on_davis_frames(vos_setup, shared_data, tmp_path) -> None:
+    calibration = davis_videos(shared_data / "davis2016", ["bear", "boat"], 3)
+    assert [name for name, _, _ in calibration] == ["bear", "boat"]
+    frames, labels = calibration[0][1:]
+    assert frames.dtype == torch.uint8 and frames.shape[:2] == (3, 3) and labels.shape == (3, *frames.shape[2:])
+    held_out_frames, held_out_labels = synthetic_video(7, n_frames=4, height=64, width=96, n_objects=1)
+    held_out = [("v", (held_out_frames * 255).round().byte(), held_out_labels)]
+    crops = [(name, f[..., 40:104, 100:196], y[..., 40:104, 100:196]) for name, f, y in calibration]  # keep it fast
+    report = export_bundle(vos_setup["tracker"], tmp_path / "int8", 64, 96, True, crops, held_out)
+    assert set(report["graphs"]) == {"frame", "features"}
+    assert report["graphs"]["frame"]["calibration_samples"] == 4  # one call per frame after the first
+    assert report["graphs"]["frame"]["int8_bytes"] < report["graphs"]["frame"]["fp32_bytes"]
+    assert Bundle(tmp_path / "int8", "vos").manifest["precision"] == "int8"
+    with pytest.raises(InputError, match="not in DAVIS split"):
+        davis_videos(shared_data / "davis2016", ["no-such-sequence"], 3)
