@@ -27,6 +27,16 @@ def partial_name(path: Path) -> Path:
     return path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
 
 
+def remove_partials(folder: str | Path) -> None:
+    """Remove the temporary files (``partial_name``) that killed writers left in ``folder``, before a resumed job
+    writes there again (a kill between writing and renaming leaves one behind)."""
+    folder = Path(folder)
+    if folder.is_dir():
+        for stale in folder.glob(".*.partial*"):
+            if stale.is_file():
+                stale.unlink(missing_ok=True)
+
+
 def writable_folder(folder: str | Path) -> Path:
     """``folder``, created if missing; an ``InputError`` naming it when it cannot be created or written."""
     folder = Path(folder)

@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 from core.errors import InputError
-from core.files import partial_name, writable_folder, write_text
+from core.files import partial_name, remove_partials, writable_folder, write_text
 from data.vos.datamodule import synthetic_videos
 from data.vos.davis import davis_sequences
 from data.vos.io import davis_palette, list_frames, read_frame, read_mask, write_mask
@@ -179,8 +179,9 @@ def segment_davis(
 
     ``tracker`` may also be the deployment runtime's (``runtime.vos.OnnxFRTMTracker``, numpy masks out).
     Resumable: a sequence's scores are stored beside its masks once all of them are written, so a rerun after an
-    interruption skips finished sequences and writes the same CSV. ``job`` (e.g. the model's path) identifies
-    the run: an ``out`` written by another job is an ``InputError``.
+    interruption skips finished sequences, removes what a killed writer left half-written and writes the same
+    CSV. ``job`` (e.g. the model's path) identifies the run: an ``out`` written by another job is an
+    ``InputError``.
     """
     out = Path(out)
     sequences = davis_sequences(root, split, resolution)  # a bad DAVIS root fails before anything is written
@@ -190,12 +191,14 @@ def segment_davis(
             raise InputError(f"{out} holds masks of another segmentation run ({out / JOB_FILE}); use another --out")
     else:
         write_text(out / JOB_FILE, json.dumps(job, indent=1))
+    remove_partials(out)
     per_seq, n_frames, seconds = {}, 0, 0.0
     for seq in sequences:
         scores = out / seq.name / SCORES_FILE
         if scores.is_file():
             per_seq[seq.name] = {int(k): v for k, v in json.loads(scores.read_text()).items()}
             continue
+        remove_partials(out / seq.name)
         frames, labels = seq.load(max_frames)
         start = time.perf_counter()
         pred = torch.stack([torch.as_tensor(p) for p in tracker.segment(frames, {0: labels[0]})])

@@ -5,6 +5,7 @@ manifest's settings; an int8 export calibrated on real DAVIS frames."""
 import numpy as np
 import pytest
 import torch
+import torch.nn.functional as F
 
 from core.errors import InputError
 from data.vos.synthetic import synthetic_video
@@ -59,8 +60,9 @@ def test_int8_export_calibrated_on_davis_frames(vos_setup, shared_data, tmp_path
     assert frames.dtype == torch.uint8 and frames.shape[:2] == (3, 3) and labels.shape == (3, *frames.shape[2:])
     held_out_frames, held_out_labels = synthetic_video(7, n_frames=4, height=64, width=96, n_objects=1)
     held_out = [("v", (held_out_frames * 255).round().byte(), held_out_labels)]
-    crops = [(name, f[..., 40:104, 100:196], y[..., 40:104, 100:196]) for name, f, y in calibration]  # keep it fast
-    report = export_bundle(vos_setup["tracker"], tmp_path / "int8", 64, 96, True, crops, held_out)
+    small = [(name, F.interpolate(f.float(), (64, 96), mode="area").round().byte(),  # keep it fast
+              F.interpolate(y[:, None].float(), (64, 96), mode="nearest")[:, 0].long()) for name, f, y in calibration]
+    report = export_bundle(vos_setup["tracker"], tmp_path / "int8", 64, 96, True, small, held_out)
     assert set(report["graphs"]) == {"frame", "features"}
     assert report["graphs"]["frame"]["calibration_samples"] == 4  # one call per frame after the first
     assert report["graphs"]["frame"]["int8_bytes"] < report["graphs"]["frame"]["fp32_bytes"]
