@@ -34,6 +34,7 @@ import numpy as np
 import torch
 from torch import nn
 from torch.export import Dim
+from tqdm import tqdm
 
 from core.command import CommandParser, run_command
 from core.errors import InputError
@@ -202,12 +203,12 @@ def _sections(tracker: FRTMTracker) -> dict:
 Videos = list[tuple[str, torch.Tensor, torch.Tensor]]
 
 
-def videos_jf(tracker: OnnxFRTMTracker, videos: Videos) -> float:
+def videos_jf(tracker: OnnxFRTMTracker, videos: Videos, desc: str = "J&F") -> float:
     """J&F mean (DAVIS protocol, %) of the runtime ``tracker`` on videos (name, frames uint8, labels)."""
     from models.vos.metrics import evaluate_sequence, summarize
 
     per_seq = {}
-    for name, frames, labels in videos:
+    for name, frames, labels in tqdm(videos, desc=desc, unit="video"):
         pred = torch.from_numpy(np.stack(list(tracker.segment(frames.numpy(), {0: labels[0].numpy()}))))
         per_seq[name] = evaluate_sequence(pred, torch.where(labels < 0, 0, labels))
     return float(summarize(per_seq)["J&F-Mean"]) * 100
@@ -243,12 +244,13 @@ def export_bundle(tracker: FRTMTracker, out: str | Path, height: int = 96, width
             runtime = OnnxFRTMTracker(fp32)
             recorded = {name: RecordingGraph(runtime.graphs[name]) for name in ("frame", "features")}
             runtime.graphs.update(recorded)
-            for _, frames, labels in calibration:
+            for _, frames, labels in tqdm(calibration, desc="int8 calibration", unit="video"):
                 list(runtime.segment(frames.numpy(), {0: labels[0].numpy()}))
             report["graphs"] = quantize_bundle_graphs(folder, recorded)
             write_manifest(folder, "vos", OPSET, precision="int8", **sections)
-            report["accuracy"] = {"float32_jf": videos_jf(OnnxFRTMTracker(fp32), held_out),
-                                  "int8_jf": videos_jf(OnnxFRTMTracker(folder), held_out), "videos": len(held_out)}
+            report["accuracy"] = {"float32_jf": videos_jf(OnnxFRTMTracker(fp32), held_out, "J&F float32"),
+                                  "int8_jf": videos_jf(OnnxFRTMTracker(folder), held_out, "J&F int8"),
+                                  "videos": len(held_out)}
             write_manifest(folder, "vos", OPSET, precision="int8", **sections, int8=report)
     return report
 
