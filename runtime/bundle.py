@@ -29,7 +29,7 @@ FORMAT = "dcfvision-bundle"
 VERSION = 1
 #: The graphs of each task's bundle, ``<name>.onnx``.
 TASK_GRAPHS = {
-    "triangulation": ("dogleg", "dogleg_shared"),
+    "triangulation": ("dogleg_start", "dogleg_start_shared", "dogleg_step"),
     "tracking": ("init", "step"),
     "horizon": ("finder", "level", "segmenter", "matcher"),
     "vos": ("frame", "features", "init", "insert", "update"),

@@ -36,19 +36,22 @@ class Triangulation(NamedTuple):
 
 class Triangulator:
     """The dogleg solver of a triangulation bundle: cameras (B|1, N, 3, 4) and observations (B, N, 2) px ->
-    ``Triangulation``, ``chunk`` points per graph call (keeps the working set in cache).
+    ``Triangulation``, ``chunk`` points per graph call (keeps the working set in cache). Each chunk runs the start
+    graph, then the step graph until none of its points is active or the bundle's iteration budget is spent.
 
     Args:
         bundle: the bundle folder; threads, provider: as ``runtime.session.Graph``; chunk: points per call.
     """
 
     def __init__(self, bundle: str | Path, threads: int | None = None, provider: str = "cpu",
-                 chunk: int = 65536) -> None:
+                 chunk: int = 16384) -> None:
         self.bundle = Bundle(bundle, "triangulation", threads, provider)
         self.views = int(self.bundle.section("input")["views"])
         thresholds = self.bundle.section("thresholds")
         self.iterations, self.min_parallax = int(thresholds["iterations"]), float(thresholds["min_parallax_rad"])
-        self.per_point, self.shared = self.bundle.graph("dogleg"), self.bundle.graph("dogleg_shared")
+        self.start_per_point = self.bundle.graph("dogleg_start")
+        self.start_shared = self.bundle.graph("dogleg_start_shared")
+        self.step = self.bundle.graph("dogleg_step")
         self.chunk = max(2, chunk)
 
     def __call__(self, cameras: np.ndarray, observations: np.ndarray) -> Triangulation:
@@ -62,17 +65,29 @@ class Triangulator:
             raise InputError(f"cameras must be (1 or {n}, {self.views}, 3, 4), got {cameras.shape}")
         if n == 0:
             raise InputError("no points to triangulate")
-        graph = self.shared if cameras.shape[0] == 1 else self.per_point
+        shared = cameras.shape[0] == 1
         parts = []
         for start in range(0, n, self.chunk):
             obs = observations[start : start + self.chunk]
             single = len(obs) == 1  # the graphs take at least 2 points: solve a lone point twice
             obs = np.concatenate([obs, obs]) if single else obs
-            cams = cameras if graph is self.shared else cameras[start : start + len(obs)]
-            cams = np.concatenate([cams, cams]) if single and graph is self.per_point else cams
-            out = graph(cams, obs)
-            parts.append([a[:1] for a in out] if single else out)
+            cams = cameras if shared else cameras[start : start + len(obs)]
+            cams = np.concatenate([cams, cams]) if single and not shared else cams
+            result = self._solve(cams, obs)
+            parts.append([a[:1] for a in result] if single else result)
         return Triangulation(*(np.concatenate(field) for field in zip(*parts, strict=True)))
+
+    def _solve(self, cameras: np.ndarray, observations: np.ndarray) -> Triangulation:
+        """One chunk: start graph, step graph while any point is active (at most ``iterations`` times)."""
+        start_graph = self.start_shared if cameras.shape[0] == 1 else self.start_per_point
+        X0, usable, rows, state, active = start_graph(cameras, observations)
+        for _ in range(self.iterations):
+            if not active.any():
+                break
+            state, active = self.step(rows, state, active)
+        cost = 2 * state[3]
+        valid = usable & (state[4] > 0) & np.isfinite(cost)
+        return Triangulation(np.ascontiguousarray((X0 + state[0:3]).T), cost, valid, ~active & valid)
 
 
 def lower_median(values: np.ndarray, axis: int | None = None) -> np.ndarray:

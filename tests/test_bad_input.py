@@ -309,7 +309,7 @@ def bundles(files, tmp_path_factory, triangulation_bundle, tracking_bundle, hori
     b = {"tri_bundle": str(triangulation_bundle), "track_bundle": str(tracking_bundle),
          "horizon_bundle": str(horizon_setup["bundle"]), "vos_bundle": str(vos_setup["bundle"]),
          "horizon_bank": str(horizon_setup["bank"])}
-    for task, source, graph in (("tri", triangulation_bundle, "dogleg.onnx"), ("vos", vos_setup["bundle"],
+    for task, source, graph in (("tri", triangulation_bundle, "dogleg_step.onnx"), ("vos", vos_setup["bundle"],
                                                                               "frame.onnx")):
         missing = shutil.copytree(source, root / f"{task}_missing")
         (missing / graph).unlink()

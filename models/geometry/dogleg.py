@@ -42,7 +42,7 @@ class DoglegTriangulation(NamedTuple):
     converged: Tensor
 
 
-class _CentredRows(NamedTuple):
+class CentredRows(NamedTuple):
     """The residual rows of all views stacked: row ``k`` of view ``i`` is entry ``2 i + k`` (2N, B)."""
 
     M: Vec3  # A_i[k, :3], each (2N, B)
@@ -51,11 +51,11 @@ class _CentredRows(NamedTuple):
     w0: Tensor  # P_i[2] X0~ (2N, B)
 
 
-def _centre(views: Views, X0: Vec3) -> _CentredRows:
+def _centre(views: Views, X0: Vec3) -> CentredRows:
     P0, P1, P2 = views.P
     rows = [torch.cat((P0[c] - views.x * P2[c], P1[c] - views.y * P2[c])) for c in range(4)]
     depth = dot3(P2, X0) + P2[3]
-    return _CentredRows(
+    return CentredRows(
         (rows[0], rows[1], rows[2]),
         dot3(rows, X0) + rows[3],
         tuple(torch.cat((P2[c], P2[c])) for c in range(3)),  # type: ignore[arg-type]
@@ -63,7 +63,7 @@ def _centre(views: Views, X0: Vec3) -> _CentredRows:
     )
 
 
-def _linearise(rows: _CentredRows, d: Vec3) -> tuple[Tensor, Tensor, list[Tensor], list[Tensor]]:
+def _linearise(rows: CentredRows, d: Vec3) -> tuple[Tensor, Tensor, list[Tensor], list[Tensor]]:
     """Half cost, smallest depth, gradient ``J^T r`` (3) and Hessian ``J^T J`` (6 entries) at ``X0 + d``."""
     w = dot3(rows.q, d) + rows.w0
     inv_w = 1.0 / w
@@ -105,6 +105,72 @@ def _dogleg_step(g: list[Tensor], H: list[Tensor], radius: Tensor) -> tuple[Vec3
     return h, length
 
 
+class DoglegState(NamedTuple):
+    """Every point's trust-region iteration at one moment (one lane per point, all (B,) tensors).
+
+    Attributes:
+        d: three components of the step from the start ``X0``; F: half cost at ``X0 + d`` (px^2); depth: smallest
+        depth over the views; g: gradient ``J^T r`` (3); H: ``J^T J`` (6 unique entries); radius: trust radius;
+        scale: ``|X0| + 1``, the size convergence is relative to; active: not yet converged (bool).
+    """
+
+    d: Vec3
+    F: Tensor
+    depth: Tensor
+    g: list[Tensor]
+    H: list[Tensor]
+    radius: Tensor
+    scale: Tensor
+    active: Tensor
+
+
+def _tolerances(dtype: torch.dtype, tolerance: float | None) -> tuple[float, float]:
+    """Relative step size that counts as converged and the relative gain lost in rounding, for ``dtype``."""
+    eps = tolerance if tolerance is not None else 1e-2 * torch.finfo(dtype).eps ** 0.5
+    return eps, 100 * torch.finfo(dtype).eps
+
+
+def dogleg_start(views: Views, X0: Vec3, tolerance: float | None = None) -> tuple[CentredRows, DoglegState]:
+    """The residual rows centred on ``X0`` and the state before the first dogleg iteration (the Gauss-Newton step
+    length as the first trust radius)."""
+    eps, _ = _tolerances(X0[0].dtype, tolerance)
+    rows = _centre(views, X0)
+    d = tuple(torch.zeros_like(v) for v in X0)
+    F, depth, g, H = _linearise(rows, d)
+    h_gn, _ = solve_sym3(H, tuple(-v for v in g))
+    radius = torch.nan_to_num(torch.sqrt(dot3(h_gn, h_gn)), nan=1.0, posinf=1.0)
+    scale = torch.sqrt(dot3(X0, X0)) + 1.0
+    radius = torch.clamp(radius, min=eps) * torch.ones_like(scale)
+    active = torch.isfinite(F) & torch.isfinite(g[0] + g[1] + g[2])
+    return rows, DoglegState(d, F, depth, g, H, radius, scale, active)  # type: ignore[arg-type]
+
+
+def dogleg_iteration(rows: CentredRows, state: DoglegState, tolerance: float | None = None) -> DoglegState:
+    """One dogleg iteration of every active point: step, gain-ratio test, radius update, convergence test."""
+    eps, rounding = _tolerances(state.F.dtype, tolerance)
+    d, F, depth, g, H, radius, scale, active = state
+    h, h_norm = _dogleg_step(g, H, radius)
+    d_new = tuple(u + v for u, v in zip(d, h, strict=True))
+    F_new, depth_new, g_new, H_new = _linearise(rows, d_new)
+    predicted = -dot3(h, g) - 0.5 * sym3_quadratic_form(H, h)
+    rho = (F - F_new) / predicted
+    accept = active & (rho > 0) & torch.isfinite(F_new) & (predicted > 0)
+    radius = torch.where(active & (rho > 0.75), torch.maximum(radius, 3 * h_norm), radius)
+    radius = torch.where(active & ~(rho >= 0.25), 0.5 * radius, radius)
+    tiny = eps * scale
+    gain_lost_in_rounding = predicted <= rounding * F
+    return DoglegState(
+        _where3(accept, d_new, d),  # type: ignore[arg-type]
+        torch.where(accept, F_new, F),
+        torch.where(accept, depth_new, depth),
+        [torch.where(accept, u, v) for u, v in zip(g_new, g, strict=True)],
+        [torch.where(accept, u, v) for u, v in zip(H_new, H, strict=True)],
+        radius,
+        scale,
+        active & (h_norm > tiny) & (radius > tiny) & ~gain_lost_in_rounding,
+    )
+
+
 def dogleg_refine(
     views: Views, X0: Vec3, iterations: int = 5, tolerance: float | None = None, early_exit: bool = True
 ) -> tuple[Vec3, Tensor, Tensor, Tensor]:
@@ -116,42 +182,29 @@ def dogleg_refine(
         iterations: maximum number of iterations (fixed when exported or compiled).
         tolerance: relative step/radius size that counts as converged (default: ``0.01 sqrt(eps)`` of the dtype);
             a point also counts as converged once the predicted gain is within rounding of its cost.
-        early_exit: stop as soon as every point converged (ignored while compiling or exporting).
+        early_exit: stop as soon as every point converged (ignored while compiling or exporting). Converged
+            points are frozen, so stopping early changes no result.
 
     Returns:
         X (three (B,) components), cost (B,) in px^2, smallest depth over the views (B,), converged (B,).
     """
-    eps = tolerance if tolerance is not None else 1e-2 * torch.finfo(X0[0].dtype).eps ** 0.5
-    rounding = 100 * torch.finfo(X0[0].dtype).eps
-    centred = _centre(views, X0)
-    d = tuple(torch.zeros_like(v) for v in X0)
-    F, depth, g, H = _linearise(centred, d)
-    h_gn, _ = solve_sym3(H, tuple(-v for v in g))
-    radius = torch.nan_to_num(torch.sqrt(dot3(h_gn, h_gn)), nan=1.0, posinf=1.0)
-    scale = torch.sqrt(dot3(X0, X0)) + 1.0
-    radius = torch.clamp(radius, min=eps) * torch.ones_like(scale)
-    active = torch.isfinite(F) & torch.isfinite(g[0] + g[1] + g[2])
+    rows, state = dogleg_start(views, X0, tolerance)
     for _ in range(iterations):
-        if early_exit and not torch.compiler.is_compiling() and not bool(active.any()):
+        if early_exit and not torch.compiler.is_compiling() and not bool(state.active.any()):
             break
-        h, h_norm = _dogleg_step(g, H, radius)
-        d_new = tuple(u + v for u, v in zip(d, h, strict=True))
-        F_new, depth_new, g_new, H_new = _linearise(centred, d_new)
-        predicted = -dot3(h, g) - 0.5 * sym3_quadratic_form(H, h)
-        rho = (F - F_new) / predicted
-        accept = active & (rho > 0) & torch.isfinite(F_new) & (predicted > 0)
-        radius = torch.where(active & (rho > 0.75), torch.maximum(radius, 3 * h_norm), radius)
-        radius = torch.where(active & ~(rho >= 0.25), 0.5 * radius, radius)
-        d = _where3(accept, d_new, d)  # type: ignore[arg-type]
-        F = torch.where(accept, F_new, F)
-        depth = torch.where(accept, depth_new, depth)
-        g = [torch.where(accept, u, v) for u, v in zip(g_new, g, strict=True)]
-        H = [torch.where(accept, u, v) for u, v in zip(H_new, H, strict=True)]
-        tiny = eps * scale
-        gain_lost_in_rounding = predicted <= rounding * F
-        active = active & (h_norm > tiny) & (radius > tiny) & ~gain_lost_in_rounding
-    X = tuple(u + v for u, v in zip(X0, d, strict=True))
-    return X, 2 * F, depth, ~active  # type: ignore[return-value]
+        state = dogleg_iteration(rows, state, tolerance)
+    X = tuple(u + v for u, v in zip(X0, state.d, strict=True))
+    return X, 2 * state.F, state.depth, ~state.active  # type: ignore[return-value]
+
+
+def midpoint_start(P: Tensor, x: Tensor, min_parallax: float) -> tuple[Views, Vec3, Tensor]:
+    """Per-entry views of (B|1, N, 3, 4) cameras and (B, N, 2) observations, the midpoint start ``X0`` (three (B,)
+    components, the origin where undefined) and (B,) ``usable``: finite inputs and rays not near-parallel."""
+    P, x, finite = finite_inputs(P, x)
+    views = split_views(P, x)
+    X0, lam = midpoint_from_views(views)
+    X0 = tuple(torch.where(torch.isfinite(v), v, torch.zeros_like(v)) for v in X0)
+    return views, X0, finite & (lam >= parallax_threshold(min_parallax))  # type: ignore[return-value]
 
 
 def triangulate_dogleg(
@@ -186,12 +239,9 @@ def triangulate_dogleg(
             for i in range(0, x.shape[0], chunk_size)
         ]
         return DoglegTriangulation(*(torch.cat(field) for field in zip(*parts, strict=True)))
-    P, x, finite = finite_inputs(P, x)
-    views = split_views(P, x)
-    X0, lam = midpoint_from_views(views)
-    X0 = tuple(torch.where(torch.isfinite(v), v, torch.zeros_like(v)) for v in X0)
-    X, cost, depth, converged = dogleg_refine(views, X0, iterations, tolerance, early_exit)  # type: ignore[arg-type]
-    valid = finite & (lam >= parallax_threshold(min_parallax)) & (depth > 0) & torch.isfinite(cost)
+    views, X0, usable = midpoint_start(P, x, min_parallax)
+    X, cost, depth, converged = dogleg_refine(views, X0, iterations, tolerance, early_exit)
+    valid = usable & (depth > 0) & torch.isfinite(cost)
     return DoglegTriangulation(torch.stack(X, dim=-1), cost, valid, converged & valid)
 
 

@@ -25,8 +25,11 @@ class Views(NamedTuple):
 def split_views(P: Tensor, x: Tensor) -> Views:
     """(B|1, N, 3, 4) cameras and (B, N, 2) observations -> ``Views`` of per-entry (N, B|1) tensors."""
     Pt = P.permute(1, 2, 3, 0)
-    xt = x.permute(2, 1, 0)
-    return Views(tuple(tuple(Pt[:, r, c] for c in range(4)) for r in range(3)), xt[0], xt[1])
+    # The reshape makes the (2N, B) layout explicit: onnxruntime's transpose optimiser otherwise moves the
+    # transpose behind the element-wise ops, which then broadcast the cameras over a (B, N) layout, 30 % slower.
+    num_views = x.shape[1]
+    xt = x.permute(2, 1, 0).reshape(2 * num_views, -1)
+    return Views(tuple(tuple(Pt[:, r, c] for c in range(4)) for r in range(3)), xt[:num_views], xt[num_views:])
 
 
 def dot3(a: tuple[Tensor, ...] | list[Tensor], b: tuple[Tensor, ...] | list[Tensor]) -> Tensor:

@@ -22,13 +22,15 @@ def test_manifest_names_the_task_graphs_and_their_hashes(bundle) -> None:
     opened = Bundle(bundle, "triangulation")
     manifest = opened.manifest
     assert manifest["task"] == "triangulation" and manifest["opset"] == 20 and manifest["precision"] == "float32"
-    assert set(manifest["graphs"]) == {"dogleg", "dogleg_shared"}
+    assert set(manifest["graphs"]) == {"dogleg_start", "dogleg_start_shared", "dogleg_step"}
     for name, entry in manifest["graphs"].items():
         assert entry["sha256"] == file_sha256(bundle / f"{name}.onnx")
     assert manifest["model_hash"] == model_hash(manifest["graphs"])
     assert opened.section("input")["views"] == 3 and opened.section("thresholds")["iterations"] == 5
-    assert opened.graph("dogleg").input_names == ["cameras", "observations"]
-    assert sorted(p.name for p in bundle.iterdir()) == ["bundle.json", "dogleg.onnx", "dogleg_shared.onnx"]
+    assert opened.graph("dogleg_start").input_names == ["cameras", "observations"]
+    assert opened.graph("dogleg_step").input_names == ["rows", "state", "active"]
+    assert sorted(p.name for p in bundle.iterdir()) == ["bundle.json", "dogleg_start.onnx", "dogleg_start_shared.onnx",
+                                                          "dogleg_step.onnx"]
 
 
 def _edit_manifest(bundle, change) -> None:
@@ -44,18 +46,18 @@ def test_bad_bundles_are_named(bundle, tmp_path) -> None:
         Bundle(tmp_path, "triangulation")
     with pytest.raises(InputError, match="not a folder"):
         Bundle(tmp_path / "missing", "triangulation")
-    graph = (bundle / "dogleg.onnx").read_bytes()
-    (bundle / "dogleg.onnx").write_bytes(graph[:-1] + bytes([graph[-1] ^ 1]))
-    with pytest.raises(InputError, match="dogleg.onnx does not match its hash"):
+    graph = (bundle / "dogleg_step.onnx").read_bytes()
+    (bundle / "dogleg_step.onnx").write_bytes(graph[:-1] + bytes([graph[-1] ^ 1]))
+    with pytest.raises(InputError, match="dogleg_step.onnx does not match its hash"):
         Bundle(bundle, "triangulation")
-    (bundle / "dogleg.onnx").unlink()
-    with pytest.raises(InputError, match="is missing its graph dogleg.onnx"):
+    (bundle / "dogleg_step.onnx").unlink()
+    with pytest.raises(InputError, match="is missing its graph dogleg_step.onnx"):
         Bundle(bundle, "triangulation")
 
 
 def test_edited_manifests_are_refused(bundle) -> None:
-    _edit_manifest(bundle, lambda m: m["graphs"].pop("dogleg_shared"))
-    with pytest.raises(InputError, match="lists no graph dogleg_shared"):
+    _edit_manifest(bundle, lambda m: m["graphs"].pop("dogleg_start_shared"))
+    with pytest.raises(InputError, match="lists no graph dogleg_start_shared"):
         Bundle(bundle, "triangulation")
     (bundle / MANIFEST).write_text("{ not json")
     with pytest.raises(InputError, match="not valid JSON"):

@@ -62,6 +62,16 @@ def test_chunks_shared_cameras_and_a_single_point(triangulation_bundle) -> None:
         solver(np.zeros((7, 3, 3, 4)), scene.observations.numpy())
 
 
+def test_steps_stop_when_every_point_converged(triangulation_bundle) -> None:
+    scene = synthetic_cube_scene(2000, noise_px=1.0, seed=3, dtype=torch.float32)
+    solver = Triangulator(triangulation_bundle, threads=1, chunk=1000)
+    calls = []
+    step = solver.step
+    solver.step = lambda *state: calls.append(1) or step(*state)
+    result = solver(scene.cameras.numpy(), scene.observations.numpy())
+    assert result.converged.all() and 2 <= len(calls) < 2 * solver.iterations  # two chunks, each stopped early
+
+
 def test_lower_median_is_torchs() -> None:
     values = torch.tensor([4.0, 1.0, 3.0, 2.0])
     assert lower_median(values.numpy()) == values.median().item()
