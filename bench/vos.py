@@ -42,7 +42,7 @@ import torch
 from core.errors import InputError
 from core.threads import set_cpu_threads
 from data.vos.composite_datamodule import EVAL_SETS, held_out_composites, lookalike_videos
-from data.vos.davis import davis_sequences
+from data.vos.davis import davis_sequences, load_davis_videos
 from models.builders import davos_system, frtm_system
 from models.vos.inference import checkpoint_test_videos, synthetic_test_settings
 from models.vos.lit import FRTMSegmentation
@@ -129,12 +129,12 @@ def speed(models: dict[str, Callable[[], object]], n_frames: int = 24, repeats: 
 def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Tensor, torch.Tensor]]]:
     if args.davis:
         names = args.sequences.split(",") if args.sequences else None
-        seqs = davis_sequences(args.davis, args.split, args.resolution, names)
         where = f"{Path(args.davis).name}/{args.split}@{args.resolution}"
         if args.composites:
+            seqs = davis_sequences(args.davis, args.split, args.resolution, names)
             return (f"composites:{args.composites} of davis:{where}",
                     held_out_composites(seqs, args.composites, max_frames=args.max_frames))
-        return f"davis:{where}", [(seq.name, *seq.load(args.max_frames)) for seq in seqs]
+        return f"davis:{where}", load_davis_videos(args.davis, args.split, args.resolution, names, args.max_frames)
     if args.composites:
         raise InputError("--composites are made from DAVIS sequences: give --davis too")
     if args.lookalike:

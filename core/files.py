@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import io
 import os
+import shutil
 import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -35,6 +36,30 @@ def remove_partials(folder: str | Path) -> None:
         for stale in folder.glob(".*.partial*"):
             if stale.is_file():
                 stale.unlink(missing_ok=True)
+
+
+def staging_folder(folder: Path) -> Path:
+    """A fresh, empty ``.NAME.PID.partial`` folder beside ``folder`` to write into before moving the files into
+    place. Staging folders of earlier writers of ``folder`` whose process is gone (a killed run) are removed;
+    those of running processes are kept."""
+    for stale in folder.parent.glob(f".{folder.name}.*.partial"):
+        pid = stale.name[len(folder.name) + 2 : -len(".partial")]
+        if stale.is_dir() and pid.isdigit() and not _process_alive(int(pid)):
+            shutil.rmtree(stale, ignore_errors=True)
+    staging = folder.with_name(f".{folder.name}.{os.getpid()}.partial")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    return staging
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def writable_folder(folder: str | Path) -> Path:

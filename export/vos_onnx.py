@@ -38,6 +38,7 @@ from tqdm import tqdm
 
 from core.command import CommandParser, run_command
 from core.errors import InputError
+from data.vos.davis import load_davis_videos
 from export.bundle import staged_bundle
 from export.int8 import RecordingGraph, quantize_bundle_graphs
 from export.onnx import OPSET, export_onnx
@@ -214,15 +215,6 @@ def videos_jf(tracker: OnnxFRTMTracker, videos: Videos, desc: str = "J&F") -> fl
     return float(summarize(per_seq)["J&F-Mean"]) * 100
 
 
-def davis_videos(root: str | Path, names: list[str], n_frames: int, split: str = "train",
-                 resolution: str = "240p") -> Videos:
-    """The first ``n_frames`` of the DAVIS sequences ``names`` (name, frames uint8 (T, 3, H, W), labels (T, H, W)):
-    real calibration frames for an int8 export."""
-    from data.vos.davis import davis_sequences
-
-    return [(seq.name, *seq.load(n_frames)) for seq in davis_sequences(root, split, resolution, names)]
-
-
 @torch.no_grad()
 def export_bundle(tracker: FRTMTracker, out: str | Path, height: int = 96, width: int = 160, int8: bool = False,
                   calibration: Videos | None = None, held_out: Videos | None = None) -> dict:
@@ -289,8 +281,8 @@ def _export_and_check(args: argparse.Namespace) -> None:
     held_out = checkpoint_test_videos(args.ckpt, args.check_videos if need else 0, args.check_frames)
     calibration = None
     if args.int8 and args.calibration_davis:
-        calibration = davis_videos(args.calibration_davis, args.calibration_sequences.split(","),
-                                   args.check_frames, args.calibration_split, args.calibration_resolution)
+        calibration = load_davis_videos(args.calibration_davis, args.calibration_split, args.calibration_resolution,
+                                        args.calibration_sequences.split(","), args.check_frames)
     elif args.int8:
         calibration = synthetic_videos("val", args.calibration_videos, 0, n_frames=args.check_frames,
                                        **synthetic_test_settings(args.ckpt))

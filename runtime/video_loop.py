@@ -16,7 +16,7 @@ import numpy as np
 
 from core.command import CommandParser, run_command
 from core.errors import InputError
-from core.files import writable_folder
+from core.files import staging_folder, writable_folder
 from runtime.bundle import add_runtime_arguments
 from runtime.vos_io import list_frames, read_frame, read_mask, write_mask
 
@@ -106,9 +106,7 @@ def segment_folder(tracker: NumpyVideoLoop, video: str | Path, mask_path: str | 
     if not ((mask > 0) & (mask < 255)).any():
         raise InputError(f"mask {mask_path} labels no object (it is empty)")
     final = writable_folder(out)
-    staging = final.with_name(f".{final.name}.{os.getpid()}.partial")
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
+    staging = staging_folder(final)
     start = time.perf_counter()
 
     def images() -> Iterator[np.ndarray]:

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from torch import Tensor
+
 from core.errors import InputError
 from data.vos.io import VOSSequence, list_frames
 
@@ -72,3 +74,12 @@ def davis_sequences(
             raise InputError(f"DAVIS sequence {name}: first-frame annotation {first} is missing")
         sequences.append(VOSSequence(name, frames, masks))
     return sequences
+
+
+def load_davis_videos(
+    root: str | Path, split: str = "val", resolution: str = "480p", names: list[str] | None = None,
+    max_frames: int | None = None,
+) -> list[tuple[str, Tensor, Tensor]]:
+    """The sequences of :func:`davis_sequences` loaded: (name, frames uint8 (T, 3, H, W), labels (T, H, W)), the
+    first ``max_frames`` frames of each (all with None)."""
+    return [(seq.name, *seq.load(max_frames)) for seq in davis_sequences(root, split, resolution, names)]

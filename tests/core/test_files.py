@@ -1,10 +1,12 @@
 """Atomic output files: a completed write replaces the target, a failed one leaves nothing, and a resumed job
 removes the temporary files a killed writer left behind (hidden ``.STEM.PID.partial.SUFFIX`` names) and
-nothing else."""
+nothing else; staging folders of dead writers are removed, those of running ones kept."""
+
+import os
 
 import pytest
 
-from core.files import atomic_path, partial_name, remove_partials, write_text
+from core.files import atomic_path, partial_name, remove_partials, staging_folder, write_text
 
 
 def test_failed_write_leaves_nothing(tmp_path) -> None:
@@ -30,3 +32,20 @@ def test_remove_partials_removes_only_stale_temporaries(tmp_path) -> None:
     remove_partials(tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*(p.name for p in keep), ".dir.partial"])
     remove_partials(tmp_path / "missing")  # a folder not written yet: nothing to do
+
+
+def test_staging_folder_removes_only_folders_of_dead_writers(tmp_path) -> None:
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    stale = tmp_path / f".out.{int(dead.stdout)}.partial"  # a writer killed mid-run
+    live = tmp_path / f".out.{os.getppid()}.partial"  # a writer still running
+    other = tmp_path / f".other.{int(dead.stdout)}.partial"  # another folder's
+    for folder in (stale, live, other):
+        folder.mkdir()
+        (folder / "00000.png").write_bytes(b"x")
+    staging = staging_folder(out)
+    assert staging == tmp_path / f".out.{os.getpid()}.partial" and staging.is_dir() and not any(staging.iterdir())
+    assert not stale.exists() and live.exists() and other.exists()

@@ -8,9 +8,10 @@ import torch
 import torch.nn.functional as F
 
 from core.errors import InputError
+from data.vos.davis import load_davis_videos
 from data.vos.synthetic import synthetic_video
 from export.parity import mask_parity
-from export.vos_onnx import apply_filter_per_object, davis_videos, export_bundle
+from export.vos_onnx import apply_filter_per_object, export_bundle
 from models.vos.target_model import apply_filter
 from runtime.bundle import Bundle
 from runtime.vos import OnnxFRTMTracker
@@ -54,7 +55,7 @@ def test_mask_parity(vos_setup) -> None:
 
 @pytest.mark.slow
 def test_int8_export_calibrated_on_davis_frames(vos_setup, shared_data, tmp_path) -> None:
-    calibration = davis_videos(shared_data / "davis2016", ["bear", "boat"], 3)
+    calibration = load_davis_videos(shared_data / "davis2016", "train", "240p", ["bear", "boat"], 3)
     assert [name for name, _, _ in calibration] == ["bear", "boat"]
     frames, labels = calibration[0][1:]
     assert frames.dtype == torch.uint8 and frames.shape[:2] == (3, 3) and labels.shape == (3, *frames.shape[2:])
@@ -68,4 +69,4 @@ def test_int8_export_calibrated_on_davis_frames(vos_setup, shared_data, tmp_path
     assert report["graphs"]["frame"]["int8_bytes"] < report["graphs"]["frame"]["fp32_bytes"]
     assert Bundle(tmp_path / "int8", "vos").manifest["precision"] == "int8"
     with pytest.raises(InputError, match="not in DAVIS split"):
-        davis_videos(shared_data / "davis2016", ["no-such-sequence"], 3)
+        load_davis_videos(shared_data / "davis2016", "train", "240p", ["no-such-sequence"], 3)
