@@ -67,7 +67,11 @@ class SequenceTrainingSamples(Dataset):
     """Samples from annotated videos (e.g. DAVIS): random sequence, object, reference frame and test frames
     within ``max_gap`` after it, with the object at least ``min_pixels`` large in the reference frame; with
     probability ``hflip`` the whole sample is mirrored left-right; with ``crop`` (h, w) every frame of a sample
-    is cut to the same window, centred on the target in the reference frame give or take a quarter window."""
+    is cut to the same window, centred on the target in the reference frame give or take a quarter window.
+
+    References are every ``reference_every``-th annotated frame (1: any). Without ``crop`` a sample also names
+    what it was cut from, so a trainer on a frozen backbone can reuse features and fitted target models (FRTM
+    cached them): ``sample_key`` (sequence, object, reference frame, mirrored) and ``test_index`` (T,)."""
 
     def __init__(
         self,
@@ -80,9 +84,12 @@ class SequenceTrainingSamples(Dataset):
         hflip: float = 0.0,
         seed: int = 0,
         crop: tuple[int, int] | list[int] | None = None,
+        reference_every: int = 1,
     ) -> None:
         if not sequences:
             raise InputError("no training sequences")
+        if reference_every < 1:
+            raise InputError(f"reference_every must be at least 1, got {reference_every}")
         if crop is not None and (len(crop) != 2 or min(crop) < 1):
             raise InputError(f"crop must be (height, width) in pixels, got {crop}")
         self.crop = None if crop is None else (int(crop[0]), int(crop[1]))
@@ -94,6 +101,7 @@ class SequenceTrainingSamples(Dataset):
         self.scale = scale
         self.hflip = hflip
         self.seed = seed
+        self.reference_every = reference_every
         self._cache: dict[int, tuple[torch.Tensor, torch.Tensor]] = {}
 
     def __len__(self) -> int:
@@ -105,12 +113,14 @@ class SequenceTrainingSamples(Dataset):
         return self._cache[s]
 
     def pick_reference(self, gen: torch.Generator, labels: torch.Tensor) -> tuple[int, torch.Tensor] | None:
-        """A random reference frame among the annotated ones (labels >= 0; YouTube-VOS annotates every 5th) but
-        the last, and the annotated frames after it; None for a video with fewer than two."""
+        """A random reference frame among every ``reference_every``-th of the annotated ones (labels >= 0;
+        YouTube-VOS annotates every 5th) but the last, and the annotated frames after it; None for a video with
+        fewer than two."""
         annotated = torch.nonzero((labels >= 0).flatten(1).any(1))[:, 0]
         if annotated.numel() < 2:
             return None
-        r = int(torch.randint(annotated.numel() - 1, (), generator=gen))
+        choices = range(0, annotated.numel() - 1, self.reference_every)
+        r = choices[int(torch.randint(len(choices), (), generator=gen))]
         return int(annotated[r]), annotated[r + 1 :]
 
     def pick_tests(self, gen: torch.Generator, later: torch.Tensor) -> list[int]:
@@ -124,11 +134,14 @@ class SequenceTrainingSamples(Dataset):
         return ids[int(torch.randint(len(ids), (), generator=gen))] if ids else None
 
     def mirror(self, gen: torch.Generator, sample: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-        """The sample mirrored left-right with probability ``hflip``, then cut to ``crop``."""
+        """The sample mirrored left-right with probability ``hflip`` (``sample_key``'s last entry says so), then
+        cut to ``crop`` (and ``sample_key`` and ``test_index`` dropped: the frames are no longer whole)."""
         if float(torch.rand((), generator=gen)) < self.hflip:
             sample = {k: v.flip(-1) if v.ndim >= 2 else v for k, v in sample.items()}
+            sample["sample_key"][-1] = 1
         if self.crop is None:
             return sample
+        sample = {k: v for k, v in sample.items() if k not in ("sample_key", "test_index")}
         h, w = sample["ref_mask"].shape
         ch, cw = min(self.crop[0], h), min(self.crop[1], w)
         ys, xs = torch.nonzero(sample["ref_mask"] > 0.5, as_tuple=True)
@@ -148,7 +161,11 @@ class SequenceTrainingSamples(Dataset):
             if obj is None:
                 continue
             ref, later = picked
-            return self.mirror(gen, training_sample(frames, labels, obj, ref, self.pick_tests(gen, later)))
+            tests = self.pick_tests(gen, later)
+            sample = training_sample(frames, labels, obj, ref, tests)
+            sample["sample_key"] = torch.tensor([s, obj, ref, 0])
+            sample["test_index"] = torch.tensor(tests)
+            return self.mirror(gen, sample)
         raise InputError("no sequence yields a training sample (objects too small or videos too short)")
 
 
@@ -267,7 +284,8 @@ class DavisVOSDataModule(VideoDataModule):
         root: DAVIS root (``../shared/data/davis2016`` here); resolution: folder such as ``240p`` or ``480p``.
         scale: resize factor applied to frames and masks after loading (1 = as stored).
         hflip: probability of mirroring a training sample left-right; crop: (h, w) training windows around the
-            target (``SequenceTrainingSamples``).
+            target; reference_every: references only at every n-th frame, so that a trainer caching fitted target
+            models meets each one several times (``SequenceTrainingSamples``).
         val_max_frames: cut evaluation videos to this many frames (None = all).
     """
 
@@ -285,6 +303,7 @@ class DavisVOSDataModule(VideoDataModule):
         scale: float = 1.0,
         hflip: float = 0.0,
         crop: tuple[int, int] | None = None,
+        reference_every: int = 1,
         val_max_frames: int | None = None,
         batch_size: int = 4,
         num_workers: int = 0,
@@ -301,7 +320,7 @@ class DavisVOSDataModule(VideoDataModule):
         h = self.hparams
         seqs = self._sequences(h.train_split, h.train_sequences)
         return SequenceTrainingSamples(seqs, h.train_samples, h.n_test_frames, h.max_gap, scale=h.scale,
-                                       hflip=h.hflip, seed=h.seed, crop=h.crop)
+                                       hflip=h.hflip, seed=h.seed, crop=h.crop, reference_every=h.reference_every)
 
     def evaluation_videos(self, stage: str) -> Videos:
         h = self.hparams
