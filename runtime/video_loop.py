@@ -12,23 +12,32 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import staging_folder, writable_folder
+from core.processing_size import nearest_indices, processing_size
 from runtime.bundle import add_runtime_arguments
 from runtime.vos_io import list_frames, read_frame, read_mask, write_mask
 
 
 class NumpyVideoLoop(ABC):
     """Host side of a bundle's tracker. Subclasses set ``min_size`` / ``max_size`` (frame sides the graphs take)
-    and implement ``add_objects``, ``step`` and ``update``; ``reset`` must call ``super().reset()``."""
+    and implement ``add_objects``, ``step`` and ``update``; ``reset`` must call ``super().reset()``.
+
+    Args:
+        process_height: as ``models.vos.video_loop.VideoLoop``: frames are resized (bilinear; masks by nearest
+            neighbour) to this many rows, aspect kept, and the label maps back to the input size; 0: input size.
+    """
 
     min_size: int
     max_size: int
 
-    def __init__(self) -> None:
+    def __init__(self, process_height: int = 0) -> None:
+        processing_size((1, 1), process_height)  # checks the value
+        self.process_height = process_height
         self.reset()
 
     def reset(self) -> None:
@@ -50,11 +59,14 @@ class NumpyVideoLoop(ABC):
 
     def _image(self, frame: np.ndarray, index: int) -> np.ndarray:
         frame = np.asarray(frame)
-        if frame.ndim != 3 or frame.shape[0] != 3 or not all(self.min_size <= n <= self.max_size
-                                                              for n in frame.shape[1:]):
-            raise InputError(f"frame {index} is {frame.shape}: the bundle takes (3, H, W) RGB frames of "
-                             f"{self.min_size} to {self.max_size} px a side")
+        if frame.ndim != 3 or frame.shape[0] != 3:
+            raise InputError(f"frame {index} is {frame.shape}: the bundle takes (3, H, W) RGB frames")
         return frame.astype(np.float32) / np.float32(255) if frame.dtype == np.uint8 else frame.astype(np.float32)
+
+    def _check_size(self, image: np.ndarray, index: int) -> None:
+        if not all(self.min_size <= n <= self.max_size for n in image.shape[1:]):
+            raise InputError(f"frame {index} is processed at {image.shape[1:]} px: the bundle takes frames of "
+                             f"{self.min_size} to {self.max_size} px a side")
 
     def segment(self, frames: Iterable[np.ndarray], masks: dict[int, np.ndarray]) -> Iterator[np.ndarray]:
         """Segment a video.
@@ -65,7 +77,7 @@ class NumpyVideoLoop(ABC):
                 a later map start there (their given mask overrides the prediction).
 
         Yields:
-            (H, W) int64 label maps, one per frame.
+            (H, W) int64 label maps, one per frame, at the input size (see ``process_height``).
         """
         if 0 not in masks:
             raise InputError("the first frame has no mask")
@@ -80,18 +92,41 @@ class NumpyVideoLoop(ABC):
                                                  and i not in self.ids]
             if t == 0 and not new_ids:
                 raise InputError("the first-frame mask is empty: it labels no object")
-            if self.ids:
-                labels, memory_labels, features = self.step(image)
-                if new_ids:
-                    new = np.isin(given, new_ids)
-                    labels = np.where(new, given, labels).astype(np.int64)
-                    memory_labels = memory_labels * ~new
-                self.update(memory_labels, features)
-            else:
-                labels = np.where(np.isin(given, new_ids), given, 0).astype(np.int64)
-            if new_ids:
-                self.add_objects(image, labels, new_ids)
+            size = image.shape[-2:]
+            work = processing_size(size, self.process_height)
+            if work == size:
+                self._check_size(image, t)
+                yield self._segment_frame(image, given, new_ids)
+                continue
+            image = cv2.resize(image.transpose(1, 2, 0), work[::-1], interpolation=cv2.INTER_LINEAR).transpose(2, 0, 1)
+            self._check_size(image, t)
+            given_work = None if given is None else _resize_labels(given, work)
+            labels = _resize_labels(self._segment_frame(image, given_work, new_ids), size)
+            if new_ids:  # new objects' masks as given, at the input size
+                labels = np.where(np.isin(given, new_ids), given, labels).astype(np.int64)
             yield labels
+
+    def _segment_frame(self, image: np.ndarray, given: np.ndarray | None, new_ids: list[int]) -> np.ndarray:
+        """Labels (h, w) of the current frame (3, h, w) at the processing size, with its given label map (h, w)
+        or None, whose objects ``new_ids`` start here."""
+        if self.ids:
+            labels, memory_labels, features = self.step(image)
+            if new_ids:
+                new = np.isin(given, new_ids)
+                labels = np.where(new, given, labels).astype(np.int64)
+                memory_labels = memory_labels * ~new
+            self.update(memory_labels, features)
+        else:
+            labels = np.where(np.isin(given, new_ids), given, 0).astype(np.int64)
+        if new_ids:
+            self.add_objects(image, labels, new_ids)
+        return labels
+
+
+def _resize_labels(labels: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """A label map resized to ``size = (h, w)`` by nearest neighbour (``core.processing_size.nearest_indices``)."""
+    rows, cols = nearest_indices(labels.shape[0], size[0]), nearest_indices(labels.shape[1], size[1])
+    return labels[rows[:, None], cols]
 
 
 def segment_folder(tracker: NumpyVideoLoop, video: str | Path, mask_path: str | Path, out: str | Path

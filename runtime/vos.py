@@ -76,7 +76,7 @@ class OnnxFRTMTracker(NumpyVideoLoop):
         self.min_size, self.max_size = int(size["min_size"]), int(size["max_size"])
         self.graphs = {name: self.bundle.graph(name) for name in ("frame", "features", "init", "insert", "update")}
         self.timings: dict[str, float] = defaultdict(float)
-        super().__init__()
+        super().__init__(int(self.settings.get("process_height", 0)))
 
     def reset(self) -> None:
         """Forget the current video."""

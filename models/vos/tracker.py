@@ -59,7 +59,7 @@ class FRTMLoop(VideoLoop):
 
     def __init__(self, settings: FRTMSettings) -> None:
         self.settings = settings
-        super().__init__()
+        super().__init__(settings.process_height)
 
     def reset(self) -> None:
         """Forget the current video."""

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from core.errors import InputError
+from core.processing_size import processing_size
 from core.settings import SettingsMixin
 from models.vos.target_features import check_feature_norm
 
@@ -39,6 +40,8 @@ class FRTMSettings(SettingsMixin):
             object's mask on a held-out synthetic video; in float64 the masks stayed identical.
         use_decoder: False segments by thresholding the upsampled target-model score (``target_model_only``).
         seed: seeds the augmentation and the filter initialisation.
+        process_height: rows of the frames the tracker works at, aspect kept (``VideoLoop``: frames resized
+            bilinearly, label maps returned at the input size); 0 works at the input size.
     """
 
     feature_layer: str = "layer3"
@@ -61,11 +64,13 @@ class FRTMSettings(SettingsMixin):
     optimizer_dtype: str = "float64"
     use_decoder: bool = True
     seed: int = 0
+    process_height: int = 0
 
     def __post_init__(self) -> None:
         for name in ("init_schedule", "update_schedule", "reg"):  # YAML and JSON give lists
             object.__setattr__(self, name, tuple(getattr(self, name)))
         check_feature_norm(self.feature_norm, self.feature_scale)
+        processing_size((1, 1), self.process_height)  # checks the value
         if self.optimizer not in OPTIMIZERS:
             raise InputError(f"optimizer must be one of {', '.join(OPTIMIZERS)}, got {self.optimizer!r}")
         if self.optimizer_dtype not in OPTIMIZER_DTYPES:

@@ -10,8 +10,10 @@ from collections import defaultdict
 from collections.abc import Iterable, Iterator
 
 import torch
+import torch.nn.functional as F
 
 from core.errors import InputError
+from core.processing_size import nearest_indices, processing_size
 
 
 class VideoLoop(ABC):
@@ -19,9 +21,16 @@ class VideoLoop(ABC):
 
     Subclasses implement ``reset`` (which must call ``super().reset()``), ``add_objects``, ``step`` and
     ``update``; ``segment`` runs them over a video. ``timings`` accumulates milliseconds per component.
+
+    Args:
+        process_height: rows of the frames the tracker works at (``segment`` resizes frames bilinearly and masks
+            by nearest neighbour to this height, aspect kept, and the label maps back to the input size); 0
+            works at the input size.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, process_height: int = 0) -> None:
+        processing_size((1, 1), process_height)  # checks the value
+        self.process_height = process_height
         self.timings: dict[str, float] = defaultdict(float)
         self.reset()
 
@@ -67,7 +76,7 @@ class VideoLoop(ABC):
                 appears in a later map start there (their given mask overrides the prediction).
 
         Yields:
-            (H, W) int64 label maps, one per frame.
+            (H, W) int64 label maps, one per frame, at the input size (see ``process_height``).
         """
         if 0 not in masks:
             raise InputError("the first frame has no mask")
@@ -82,15 +91,38 @@ class VideoLoop(ABC):
                                                  and i not in self.ids]
             if t == 0 and not new_ids:
                 raise InputError("the first-frame mask is empty: it labels no object")
-            if self.ids:
-                labels, memory_labels, features = self.step(image)
-                if new_ids:
-                    new = torch.isin(given, torch.tensor(new_ids, device=given.device)).to(labels.device)
-                    labels = torch.where(new, given.to(labels.device, labels.dtype), labels)
-                    memory_labels = memory_labels * (~new).to(memory_labels.dtype)
-                self.update(memory_labels, features)
-            else:
-                labels = torch.where(torch.isin(given, torch.tensor(new_ids)), given, 0).long()
-            if new_ids:
-                self.add_objects(image, labels.to(image.device), new_ids)
+            size = (image.shape[-2], image.shape[-1])
+            work = processing_size(size, self.process_height)
+            if work == size:
+                yield self._segment_frame(image, given, new_ids)
+                continue
+            image = F.interpolate(image[None], size=work, mode="bilinear", align_corners=False)[0]
+            given_work = None if given is None else _resize_labels(given, work)
+            labels = _resize_labels(self._segment_frame(image, given_work, new_ids), size)
+            if new_ids:  # new objects' masks as given, at the input size
+                new = torch.isin(given, torch.tensor(new_ids, device=given.device)).to(labels.device)
+                labels = torch.where(new, given.to(labels.device, labels.dtype), labels)
             yield labels
+
+    def _segment_frame(self, image: torch.Tensor, given: torch.Tensor | None, new_ids: list[int]) -> torch.Tensor:
+        """Labels (h, w) of the current frame (3, h, w) at the processing size, with its given label map (h, w)
+        or None, whose objects ``new_ids`` start here."""
+        if self.ids:
+            labels, memory_labels, features = self.step(image)
+            if new_ids:
+                new = torch.isin(given, torch.tensor(new_ids, device=given.device)).to(labels.device)
+                labels = torch.where(new, given.to(labels.device, labels.dtype), labels)
+                memory_labels = memory_labels * (~new).to(memory_labels.dtype)
+            self.update(memory_labels, features)
+        else:
+            labels = torch.where(torch.isin(given, torch.tensor(new_ids)), given, 0).long()
+        if new_ids:
+            self.add_objects(image, labels.to(image.device), new_ids)
+        return labels
+
+
+def _resize_labels(labels: torch.Tensor, size: tuple[int, int]) -> torch.Tensor:
+    """A label map (H, W) resized to ``size = (h, w)`` by nearest neighbour (``nearest_indices``)."""
+    rows, cols = (torch.from_numpy(nearest_indices(n, m)).to(labels.device)
+                  for n, m in zip(labels.shape, size, strict=True))
+    return labels[rows[:, None], cols]

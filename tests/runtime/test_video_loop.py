@@ -66,3 +66,30 @@ def test_segment_folder_writes_masks_named_after_frames(tmp_path) -> None:
     with pytest.raises(InputError, match="labels no object"):
         segment_folder(CopyLoop(), tmp_path / "video", tmp_path / "empty.png", tmp_path / "o2")
     assert not (tmp_path / "o2").exists() or not any((tmp_path / "o2").iterdir())
+
+
+def test_process_height_matches_the_pytorch_loop() -> None:
+    import torch
+
+    from tests.models.vos.test_video_loop import ThresholdLoop
+
+    class NumpyThresholdLoop(CopyLoop):
+        def step(self, image):
+            self.calls.append(("step", self.frame, image.shape[-2:]))
+            labels = np.where(image[0] > 0.5, 1, 0).astype(np.int64)
+            return labels, (labels == 1).astype(np.float32)[None], image
+
+    rng = np.random.default_rng(0)
+    frames = rng.random((3, 3, 12, 20)).astype(np.float32)
+    first = np.zeros((12, 20), np.int64)
+    first[2:8, 3:9] = 1
+    late = first.copy()
+    late[10:, 15:] = 2  # a late object, given at the input size
+    for height in (18, 8):  # up and down
+        ours = list(NumpyThresholdLoop(process_height=height).segment(frames, {0: first, 2: late}))
+        reference = list(ThresholdLoop(process_height=height).segment(torch.from_numpy(frames),
+                                                                      {0: torch.from_numpy(first),
+                                                                       2: torch.from_numpy(late)}))
+        for a, b in zip(ours, reference, strict=True):
+            assert a.shape == (12, 20) and (a == b.numpy()).all()
+        assert (ours[2][10:, 15:] == 2).all()

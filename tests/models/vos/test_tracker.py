@@ -72,3 +72,22 @@ def test_optimizer_precision_option(backbone) -> None:
     assert inter / ((preds["float32"] == 1) | (preds["float64"] == 1)).sum() > 0.9
     with pytest.raises(InputError, match="optimizer_dtype"):
         small_tracker(backbone, optimizer_dtype="float16")
+
+
+def test_process_height_runs_the_tracker_at_that_size(backbone) -> None:
+    """Frames of 48 x 64 processed at 96 rows: the backbone sees 96 x 128, the masks come back at 48 x 64, the
+    first one unchanged, and the object is tracked as well as at the input size (a slow synthetic video)."""
+    frames, labels = synthetic_video(11, n_frames=6, height=48, width=64, n_distractors=0, motion=0.6)
+    seen = []
+    hook = backbone.register_forward_pre_hook(lambda module, args: seen.append(tuple(args[0].shape[-2:])))
+    try:
+        pred = torch.stack(list(small_tracker(backbone, process_height=96).segment(frames, {0: labels[0]})))
+    finally:
+        hook.remove()
+    assert set(seen) == {(96, 128)}
+    assert pred.shape == labels.shape and torch.equal(pred[0], labels[0])
+    native = torch.stack(list(small_tracker(backbone).segment(frames, {0: labels[0]})))
+    j_up, j_native = (evaluate_sequence(p, labels)[1]["J-Mean"] for p in (pred, native))
+    assert j_up > 0.5 and j_up > j_native - 0.1
+    with pytest.raises(InputError, match="process_height"):
+        FRTMSettings(process_height=-1)

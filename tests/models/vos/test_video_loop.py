@@ -53,3 +53,46 @@ def test_first_masks_must_exist_and_label_something() -> None:
         list(CopyLoop().segment(frames, {0: torch.zeros(4, 5, dtype=torch.long)}))
     with pytest.raises(InputError, match="mask of frame 0"):
         list(CopyLoop().segment(frames, {0: torch.ones(3, 5, dtype=torch.long)}))
+
+
+class ThresholdLoop(CopyLoop):
+    """Labels object 1 where the first channel exceeds 0.5 (the other objects where last given), recording the
+    image sizes it sees."""
+
+    def step(self, image):
+        self.calls.append(("step", self.frame, tuple(image.shape[-2:])))
+        labels = torch.where(image[0] > 0.5, 1, 0)
+        return labels, (labels == 1).float()[None], image
+
+
+def _nearest_exact(labels, size):
+    """Brute-force nearest-neighbour resize by pixel centres: output pixel i reads input floor((i + 0.5) n / m)."""
+    from fractions import Fraction
+
+    rows = [int((i + Fraction(1, 2)) * labels.shape[0] / size[0]) for i in range(size[0])]
+    cols = [int((j + Fraction(1, 2)) * labels.shape[1] / size[1]) for j in range(size[1])]
+    return labels[rows][:, cols]
+
+
+def test_process_height_works_at_the_processing_size_and_answers_at_the_input_size() -> None:
+    import cv2
+    import numpy as np
+
+    gen = torch.Generator().manual_seed(0)
+    frames = torch.rand(3, 3, 6, 10, generator=gen)
+    first = torch.zeros(6, 10, dtype=torch.long)
+    first[1:4, 2:6] = 1
+    loop = ThresholdLoop(process_height=9)  # 6 x 10 -> 9 x 15
+    out = list(loop.segment(frames, {0: first}))
+    assert [c[2] for c in loop.calls if c[0] == "step"] == [(9, 15), (9, 15)]
+    assert torch.equal(out[0], first)  # the given first mask, unchanged by the round trip
+    assert torch.equal(loop.calls[0][3], _nearest_exact(first, (9, 15)))  # the object starts at the working size
+    for t in (1, 2):  # the reference: cv2's bilinear resize, the threshold, nearest back to 6 x 10
+        work = cv2.resize(frames[t, 0].numpy(), (15, 9), interpolation=cv2.INTER_LINEAR)
+        expected = _nearest_exact(torch.from_numpy((work > 0.5).astype(np.int64)), (6, 10))
+        assert out[t].shape == (6, 10) and torch.equal(out[t], expected)
+
+
+def test_process_height_must_not_be_negative() -> None:
+    with pytest.raises(InputError, match="process_height"):
+        CopyLoop(process_height=-2)
