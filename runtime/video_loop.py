@@ -65,8 +65,8 @@ class NumpyVideoLoop(ABC):
 
     def _check_size(self, image: np.ndarray, index: int) -> None:
         if not all(self.min_size <= n <= self.max_size for n in image.shape[1:]):
-            raise InputError(f"frame {index} is processed at {image.shape[1:]} px: the bundle takes frames of "
-                             f"{self.min_size} to {self.max_size} px a side")
+            raise InputError(f"frame {index} is {image.shape} where it is processed: the bundle takes (3, H, W) RGB "
+                             f"frames of {self.min_size} to {self.max_size} px a side")
 
     def segment(self, frames: Iterable[np.ndarray], masks: dict[int, np.ndarray]) -> Iterator[np.ndarray]:
         """Segment a video.
