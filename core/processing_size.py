@@ -8,11 +8,17 @@ import numpy as np
 from core.errors import InputError
 
 
+def check_process_height(height: int) -> int:
+    """``height`` when it is 0 (native size) or a positive number of rows, else an ``InputError`` naming it."""
+    if height < 0:
+        raise InputError(f"process_height must be 0 (native size) or a positive number of rows, got {height}")
+    return height
+
+
 def processing_size(size: tuple[int, int], height: int) -> tuple[int, int]:
     """``(h, w)`` px at which a ``size = (H, W)`` frame is processed: ``height`` rows with the aspect kept (the
     width rounded to the nearest pixel, at least 1), or ``size`` itself when ``height`` is 0."""
-    if height < 0:
-        raise InputError(f"process_height must be 0 (native size) or a positive number of rows, got {height}")
+    check_process_height(height)
     h, w = int(size[0]), int(size[1])
     if height == 0 or height == h:
         return h, w

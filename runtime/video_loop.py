@@ -18,7 +18,7 @@ import numpy as np
 from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import staging_folder, writable_folder
-from core.processing_size import nearest_indices, processing_size
+from core.processing_size import check_process_height, nearest_indices, processing_size
 from runtime.bundle import add_runtime_arguments
 from runtime.vos_io import list_frames, read_frame, read_mask, write_mask
 
@@ -36,8 +36,7 @@ class NumpyVideoLoop(ABC):
     max_size: int
 
     def __init__(self, process_height: int = 0) -> None:
-        processing_size((1, 1), process_height)  # checks the value
-        self.process_height = process_height
+        self.process_height = check_process_height(process_height)
         self.reset()
 
     def reset(self) -> None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from core.errors import InputError
-from core.processing_size import processing_size
+from core.processing_size import check_process_height
 from core.settings import SettingsMixin
 from models.vos.target_features import check_feature_norm
 
@@ -70,7 +70,7 @@ class FRTMSettings(SettingsMixin):
         for name in ("init_schedule", "update_schedule", "reg"):  # YAML and JSON give lists
             object.__setattr__(self, name, tuple(getattr(self, name)))
         check_feature_norm(self.feature_norm, self.feature_scale)
-        processing_size((1, 1), self.process_height)  # checks the value
+        check_process_height(self.process_height)
         if self.optimizer not in OPTIMIZERS:
             raise InputError(f"optimizer must be one of {', '.join(OPTIMIZERS)}, got {self.optimizer!r}")
         if self.optimizer_dtype not in OPTIMIZER_DTYPES:

@@ -13,7 +13,7 @@ import torch
 import torch.nn.functional as F
 
 from core.errors import InputError
-from core.processing_size import nearest_indices, processing_size
+from core.processing_size import check_process_height, nearest_indices, processing_size
 
 
 class VideoLoop(ABC):
@@ -29,8 +29,7 @@ class VideoLoop(ABC):
     """
 
     def __init__(self, process_height: int = 0) -> None:
-        processing_size((1, 1), process_height)  # checks the value
-        self.process_height = process_height
+        self.process_height = check_process_height(process_height)
         self.timings: dict[str, float] = defaultdict(float)
         self.reset()
 
