@@ -147,3 +147,24 @@ def test_ablation_overlays_parse_over_the_davos_config(overlay: str, capsys) -> 
     out = capsys.readouterr().out
     assert ("distractors: false" in out) == overlay.endswith("lwl.yaml")
     assert ("soft_loss: false" in out) == overlay.endswith("hard_loss.yaml")
+
+
+@pytest.mark.slow
+def test_weight_averaged_frtm_checkpoint_loads_the_average(frtm_config, tmp_path) -> None:
+    """A fit with ``EMAWeightAveraging`` (as the lite0 DAVIS config) saves the average as ``state_dict`` and the
+    trained weights apart; the project's loader (bench, infer) gets the average."""
+    from models.checkpoint import load_system, read_checkpoint
+
+    config, _ = frtm_config
+    train_py("fit", "--config", str(config), *SINGLE, "--trainer.max_steps", "3",
+             "--trainer.enable_checkpointing", "true", "--trainer.default_root_dir", str(tmp_path),
+             "--trainer.callbacks+=ModelCheckpoint", "--trainer.callbacks.save_last=true",
+             "--trainer.callbacks.dirpath", str(tmp_path / "ckpt"),
+             "--trainer.callbacks+=lightning.pytorch.callbacks.EMAWeightAveraging", "--trainer.callbacks.decay=0.5",
+             "--trainer.callbacks.update_starting_at_step=0")
+    content = read_checkpoint(tmp_path / "ckpt" / "last.ckpt")
+    averaged, trained = content["state_dict"], content["current_model_state"]
+    learnt = [name for name, value in trained.items() if value.is_floating_point() and "decoder" in name]
+    assert learnt and any(not torch.equal(averaged[name], trained[name]) for name in learnt)
+    loaded = load_system(FRTMSegmentation, tmp_path / "ckpt" / "last.ckpt").state_dict()
+    assert all(torch.equal(loaded[name], averaged[name]) for name in learnt)
