@@ -43,6 +43,7 @@ from export.bundle import staged_bundle
 from export.int8 import RecordingGraph, quantize_bundle_graphs
 from export.onnx import OPSET, export_onnx
 from export.parity import mask_parity
+from models.vos.decoder import flip_averaged_logits
 from models.vos.memory import Memory
 from models.vos.optimizer import SteepestDescent
 from models.vos.target_model import target_model_init
@@ -75,6 +76,7 @@ class FrameGraph(nn.Module):
         self.backbone = tracker.backbone
         self.decoder = tracker.decoder if tracker.use_decoder else None
         self.target_input = tracker.target_input
+        self.flip_test = tracker.flip_test
 
     def forward(self, image: torch.Tensor, wp: torch.Tensor, wf: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         feats = self.backbone(image)
@@ -86,7 +88,10 @@ class FrameGraph(nn.Module):
             up = torch.nn.functional.interpolate(score, size=size, mode="bilinear", align_corners=False)
             return (up[:, 0] - 0.5) * 10, z
         shared = {k: v.expand(n, -1, -1, -1) for k, v in feats.items()}
-        return self.decoder(score, shared, size)[:, 0], z
+        if not self.flip_test:
+            return self.decoder(score, shared, size)[:, 0], z
+        mirrored = {k: v.expand(n, -1, -1, -1) for k, v in self.backbone(image.flip(-1)).items()}
+        return flip_averaged_logits(self.decoder, score, shared, mirrored, size)[:, 0], z
 
 
 class FeaturesGraph(nn.Module):

@@ -192,3 +192,30 @@ class SegmentationDecoder(nn.Module):
             h = self.cab[stage](pooled if x is None else x, h)
             x = self.rrb2[stage](h)
         return self.upsampler(x, size)
+
+
+def flip_averaged_logits(
+    decoder: SegmentationDecoder,
+    score: torch.Tensor,
+    features: dict[str, torch.Tensor],
+    mirrored: dict[str, torch.Tensor],
+    size: tuple[int, int],
+) -> torch.Tensor:
+    """Test-time flip augmentation of the decoder: the mean of its logits for the frame and the logits for the
+    left-right mirrored frame, mirrored back.
+
+    The mirrored frame is decoded from the mirrored score and ``mirrored``, its backbone features; the result is
+    exactly symmetric: mirrored inputs (score, features and ``mirrored`` swapped) give the mirrored logits.
+
+    Args:
+        decoder: the segmentation decoder.
+        score: (N, S, h, w) target-model scores.
+        features, mirrored: ``{stage: (N or 1, C_l, h_l, w_l)}`` backbone features of the frame and of the
+            mirrored frame.
+        size: (H, W) of the output.
+
+    Returns:
+        (N, O, H, W) logits.
+    """
+    direct = decoder(score, features, size)
+    return 0.5 * (direct + decoder(score.flip(-1), mirrored, size).flip(-1))

@@ -4,8 +4,9 @@ frame -> backbone features -> per object: target model W_f * (W_p * x) on stride
 -> decoder (with all backbone stages) -> logit -> soft aggregation over objects -> labels; the merged soft
 masks and projected features go into each object's memory, and W_f is re-optimised every ``update_every``
 frames. A new object (in the first frame or later) gets the first-frame augmentation, a joint W_p/W_f fit,
-then W_p is frozen. With ``use_decoder=False`` the upsampled target-model score thresholded at 0.5 replaces
-the decoder (the ``target_model_only`` baseline).
+then W_p is frozen. With ``flip_test`` the decoder's logits are averaged with those of the mirrored frame. With
+``use_decoder=False`` the upsampled target-model score thresholded at 0.5 replaces the decoder (the
+``target_model_only`` baseline).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from torch import nn
 from core.errors import InputError
 from models.backbones import Backbone
 from models.vos.augment import first_frame_augment
-from models.vos.decoder import SegmentationDecoder
+from models.vos.decoder import SegmentationDecoder, flip_averaged_logits
 from models.vos.memory import Memory, memory_init, memory_insert
 from models.vos.merge import merge_objects
 from models.vos.optimizer import build_optimizer
@@ -196,6 +197,11 @@ class FRTMTracker(nn.Module, FRTMLoop):
         """Whether the decoder segments (else the thresholded target-model score)."""
         return self.settings.use_decoder and self.decoder is not None
 
+    @property
+    def flip_test(self) -> bool:
+        """Whether the decoder also reads the mirrored frame (``FRTMSettings.flip_test``)."""
+        return self.settings.flip_test and self.use_decoder
+
     def target_features(self, images: torch.Tensor) -> torch.Tensor:
         """Target-model features (M, D, h, w) of images (M, 3, H, W)."""
         return torch.cat([self.target_input(self.backbone(x[None])) for x in images])
@@ -216,6 +222,7 @@ class FRTMTracker(nn.Module, FRTMLoop):
         device = image.device
         start = self._tic(device)
         feats = self.backbone(image[None])
+        mirrored = self.backbone(image.flip(-1)[None]) if self.flip_test else None
         self._toc("backbone", start, device)
         start = self._tic(device)
         z = project(self.target_input(feats)[:, None], self.wp)[:, 0]  # (N, C, h, w)
@@ -223,7 +230,9 @@ class FRTMTracker(nn.Module, FRTMLoop):
         self._toc("target_model", start, device)
         start = self._tic(device)
         size = (image.shape[-2], image.shape[-1])
-        if self.use_decoder:
+        if mirrored is not None:
+            logits = flip_averaged_logits(self.decoder, score[:, None], feats, mirrored, size)[:, 0]
+        elif self.use_decoder:
             logits = self.decoder(score[:, None], feats, size)[:, 0]
         else:
             up = F.interpolate(score[:, None], size=size, mode="bilinear", align_corners=False)[:, 0]

@@ -38,6 +38,8 @@ class FRTMSettings(SettingsMixin):
             kept in the features' precision between calls). In float32 the closed loop (fit -> masks -> memory
             -> update) amplifies rounding: a 1e-6 relative change of the input frames changed up to 7 % of an
             object's mask on a held-out synthetic video; in float64 the masks stayed identical.
+        flip_test: with the decoder, average its logits with those of the left-right mirrored frame (test-time
+            augmentation, ``models.vos.decoder.flip_averaged_logits``; twice the backbone and decoder work).
         use_decoder: False segments by thresholding the upsampled target-model score (``target_model_only``).
         seed: seeds the augmentation and the filter initialisation.
         process_height: rows of the frames the tracker works at, aspect kept (``VideoLoop``: frames resized
@@ -62,6 +64,7 @@ class FRTMSettings(SettingsMixin):
     min_update_pixels: int = 10
     label_stride: int = 1
     optimizer_dtype: str = "float64"
+    flip_test: bool = False
     use_decoder: bool = True
     seed: int = 0
     process_height: int = 0

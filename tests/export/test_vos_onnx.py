@@ -1,6 +1,8 @@
 """The VOS bundle: the per-object filter of the graphs, onnxruntime parity of the frame and init graphs (rtol 1e-4;
-the init graph starts from the tracker's seeded filters), the mask parity of the runtime against PyTorch, the
-manifest's settings; an int8 export calibrated on real DAVIS frames."""
+the init graph starts from the tracker's seeded filters; the frame graph with the test-time flip too), the mask
+parity of the runtime against PyTorch, the manifest's settings; an int8 export calibrated on real DAVIS frames."""
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -10,10 +12,13 @@ import torch.nn.functional as F
 from core.errors import InputError
 from data.vos.davis import load_davis_videos
 from data.vos.synthetic import synthetic_video
+from export.onnx import export_onnx
 from export.parity import mask_parity
-from export.vos_onnx import apply_filter_per_object, export_bundle
+from export.vos_onnx import FrameGraph, apply_filter_per_object, export_bundle
 from models.vos.target_model import apply_filter
+from models.vos.tracker import FRTMTracker
 from runtime.bundle import Bundle
+from runtime.session import Graph
 from runtime.vos import OnnxFRTMTracker
 
 
@@ -43,6 +48,25 @@ def test_graph_parity(vos_setup) -> None:
     for a, b in zip(got, ref, strict=True):
         np.testing.assert_allclose(a, b.numpy(), rtol=1e-4, atol=1e-4)
     assert bundle.section("settings")["label_stride"] == 2 and bundle.section("input")["stride"] == 16
+
+
+@pytest.mark.slow
+def test_frame_graph_with_flip_test_parity(vos_setup, tmp_path) -> None:
+    base = vos_setup["tracker"]
+    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, flip_test=True)).eval()
+    g = torch.Generator().manual_seed(2)
+    wp, wf = torch.randn(2, 8, 256, generator=g) / 16, torch.randn(2, 8, 3, 3, generator=g) / 8
+    export_onnx(FrameGraph(tracker), (torch.rand(1, 3, 64, 96, generator=g), wp, wf), tmp_path / "frame.onnx",
+                ["image", "wp", "wf"], ["logits", "z"])
+    image = torch.rand(1, 3, 64, 96, generator=g)
+    logits, _ = Graph(tmp_path / "frame.onnx")(image.numpy(), wp.numpy(), wf.numpy())
+    tracker.wp, tracker.wf = wp, wf
+    with torch.no_grad():
+        ref, _ = tracker.segment_frame(image[0])
+        base.wp, base.wf = wp, wf
+        plain, _ = base.segment_frame(image[0])
+    np.testing.assert_allclose(logits, ref.numpy(), rtol=1e-4, atol=1e-4)
+    assert np.abs(logits - plain.numpy()).max() > 1e-3  # the exported graph does read the mirrored frame
 
 
 @pytest.mark.slow

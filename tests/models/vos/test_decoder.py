@@ -1,4 +1,5 @@
-"""Segmentation decoder: shapes, gradient flow, independent objects, bicubic 2x upsampling, initialisation."""
+"""Segmentation decoder: shapes, gradient flow, independent objects, bicubic 2x upsampling, initialisation, the
+test-time flip average."""
 
 import pytest
 import torch
@@ -6,7 +7,7 @@ import torch.nn.functional as F
 
 from core.errors import InputError
 from models.backbones import ResNetBackbone
-from models.vos.decoder import SegmentationDecoder, bicubic_upsample2x
+from models.vos.decoder import SegmentationDecoder, bicubic_upsample2x, flip_averaged_logits
 
 
 def test_decoder_shapes_shared_features_and_gradients() -> None:
@@ -61,3 +62,23 @@ def test_decoder_he_initialisation() -> None:
             fan_in = module.weight[0].numel()
             assert abs(module.weight.std().item() / (2 / fan_in) ** 0.5 - 1) < 0.15
             assert not module.bias.any()
+
+
+def test_flip_averaged_logits_mirror_symmetry_and_mean() -> None:
+    """Mirrored inputs give the mirrored logits (exactly, in float64), and the result is the mean of the plain
+    decoder's logits and those of the mirrored inputs mirrored back."""
+    torch.manual_seed(0)
+    backbone = ResNetBackbone("resnet18").double().eval()
+    decoder = SegmentationDecoder(backbone.channels, mdim=8).double().eval()
+    image = torch.rand(1, 3, 64, 96, dtype=torch.float64)
+    with torch.no_grad():
+        feats, mirrored = backbone(image), backbone(image.flip(-1))
+        score = torch.randn(2, 1, 4, 6, dtype=torch.float64)
+        out = flip_averaged_logits(decoder, score, feats, mirrored, (64, 96))
+        swapped = flip_averaged_logits(decoder, score.flip(-1), mirrored, feats, (64, 96))
+        plain, other = decoder(score, feats, (64, 96)), decoder(score.flip(-1), mirrored, (64, 96)).flip(-1)
+    assert out.shape == (2, 1, 64, 96)
+    torch.testing.assert_close(swapped, out.flip(-1), rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(out, (plain + other) / 2, rtol=1e-12, atol=1e-12)
+    assert (plain - other).abs().max() > 1e-3  # the mirrored frame changes the logits
+

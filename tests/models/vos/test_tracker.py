@@ -9,6 +9,7 @@ from data.vos.synthetic import synthetic_video
 from models.backbones import ResNetBackbone
 from models.vos.decoder import SegmentationDecoder
 from models.vos.metrics import evaluate_sequence
+from models.vos.target_model import apply_filter
 from models.vos.tracker import COMPONENTS, FRTMTracker
 from models.vos.tracker_settings import FRTMSettings
 
@@ -46,6 +47,28 @@ def test_late_object_and_decoder_path(backbone) -> None:
     assert not (pred[:3] == 2).any()
     assert torch.equal(pred[3] == 2, labels[3] == 2) and tracker.ids == [1, 2]
     assert tracker.memory.weights.shape == (2, 12)
+
+
+def test_flip_test_decodes_the_mirrored_frame_too(backbone) -> None:
+    frames, labels = synthetic_video(2, n_frames=4, height=64, width=96, n_distractors=0, motion=0.3)
+    decoder = SegmentationDecoder(backbone.channels, mdim=8).eval()
+    plain, flipped = small_tracker(backbone, decoder), small_tracker(backbone, decoder, flip_test=True)
+    with torch.inference_mode():
+        for tracker in (plain, flipped):
+            tracker.add_objects(frames[0], labels[0], [1])
+        logits, z = plain.segment_frame(frames[1])
+        logits_flip, z_flip = flipped.segment_frame(frames[1])
+        score = apply_filter(z_flip[:, None], flipped.wf)  # the mirrored frame is decoded with the same score
+        mirrored = decoder(score.flip(-1), backbone(frames[1].flip(-1)[None]), (64, 96))[:, 0].flip(-1)
+    torch.testing.assert_close(z_flip, z)  # the target model reads the frame itself
+    torch.testing.assert_close(logits_flip, (logits + mirrored) / 2, rtol=1e-5, atol=1e-5)
+    assert flipped.timings["backbone"] > 0
+    # without the decoder the setting changes nothing
+    a = small_tracker(backbone, decoder, use_decoder=False)
+    b = small_tracker(backbone, decoder, use_decoder=False, flip_test=True)
+    with torch.inference_mode():
+        preds = [torch.stack(list(t.segment(frames, {0: labels[0]}))) for t in (a, b)]
+    assert torch.equal(*preds)
 
 
 def test_bad_inputs(backbone) -> None:
