@@ -73,6 +73,9 @@ class FRTMSettings(SettingsMixin):
         for name in ("init_schedule", "update_schedule", "reg"):  # YAML and JSON give lists
             object.__setattr__(self, name, tuple(getattr(self, name)))
         check_feature_norm(self.feature_norm, self.feature_scale)
+        for name in ("pixel_weighting", "flip_test", "use_decoder"):  # a string "false" would read as on
+            if not isinstance(getattr(self, name), bool):
+                raise InputError(f"tracker setting {name} must be true or false, got {getattr(self, name)!r}")
         check_process_height(self.process_height)
         if self.optimizer not in OPTIMIZERS:
             raise InputError(f"optimizer must be one of {', '.join(OPTIMIZERS)}, got {self.optimizer!r}")

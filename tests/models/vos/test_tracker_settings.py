@@ -31,6 +31,8 @@ def test_json_round_trip_and_lists_become_tuples() -> None:
     ({"update_schedule": []}, "non-empty"),
     ({"reg": [1e-4]}, "two non-negative"),
     ({"feature_norm": "batch"}, "feature_norm must be one of"),
+    ({"flip_test": "false"}, "flip_test must be true or false"),
+    ({"use_decoder": 1}, "use_decoder must be true or false"),
 ])
 def test_bad_settings_are_named(change, message) -> None:
     with pytest.raises(InputError, match=message):
