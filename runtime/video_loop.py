@@ -43,6 +43,7 @@ class NumpyVideoLoop(ABC):
         """Forget the current video."""
         self.ids: list[int] = []
         self.frame = 0
+        self.previous_labels: np.ndarray | None = None  # the last frame's labels at the processing size
 
     @abstractmethod
     def add_objects(self, image: np.ndarray, labels: np.ndarray, ids: list[int]) -> None:
@@ -119,6 +120,7 @@ class NumpyVideoLoop(ABC):
             labels = np.where(np.isin(given, new_ids), given, 0).astype(np.int64)
         if new_ids:
             self.add_objects(image, labels, new_ids)
+        self.previous_labels = labels
         return labels
 
 

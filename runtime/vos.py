@@ -22,6 +22,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.first_frame_augment import first_frame_augment
+from core.search_region import DROPPED_LOGIT, outside_search_region
 from runtime.area import area_resize
 from runtime.bundle import Bundle
 from runtime.video_loop import NumpyVideoLoop, video_command
@@ -153,11 +154,17 @@ class OnnxFRTMTracker(NumpyVideoLoop):
         self.wf, self.cg_state = wf, (p, rho, r_prev)
 
     def step(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Labels (H, W), merged soft masks (N, H, W) and projected features (N, C, h, w) of a frame (3, H, W)."""
+        """Labels (H, W), merged soft masks (N, H, W) and projected features (N, C, h, w) of a frame (3, H, W); the
+        search region as ``FRTMLoop.step``."""
         start = time.perf_counter()
         logits, z = self.graphs["frame"](image[None], self.wp, self.wf)
         self._tick("frame", start)
         labels, soft = merge_objects(logits, self.ids)
+        radius = float(self.settings.get("search_radius", 0.0))
+        if radius > 0 and self.previous_labels is not None:
+            drop = outside_search_region(labels, self.previous_labels, self.ids, radius)
+            if drop.any():
+                labels, soft = merge_objects(np.where(drop, np.float32(DROPPED_LOGIT), logits), self.ids)
         return labels, soft, z
 
     def update(self, soft: np.ndarray, z: np.ndarray) -> None:

@@ -6,7 +6,8 @@ masks and projected features go into each object's memory, and W_f is re-optimis
 frames. A new object (in the first frame or later) gets the first-frame augmentation, a joint W_p/W_f fit,
 then W_p is frozen. With ``flip_test`` the decoder's logits are averaged with those of the mirrored frame. With
 ``use_decoder=False`` the upsampled target-model score thresholded at 0.5 replaces the decoder (the
-``target_model_only`` baseline).
+``target_model_only`` baseline). With ``search_radius`` an object's mask keeps only the components near its
+previous mask (a search region, as the DCF trackers have; ``core.search_region``).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from core.errors import InputError
+from core.search_region import DROPPED_LOGIT, outside_search_region
 from models.backbones import Backbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder, flip_averaged_logits
@@ -145,7 +147,8 @@ class FRTMLoop(VideoLoop):
         self._toc("init", start, device)
 
     def step(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Segment one frame.
+        """Segment one frame; with ``search_radius`` the mask components far from each object's previous mask
+        are given to the background (``core.search_region``) before the masks go to the memory.
 
         Args:
             image: (3, H, W) RGB in [0, 1].
@@ -157,7 +160,14 @@ class FRTMLoop(VideoLoop):
         if not self.ids:
             raise InputError("no object is tracked: give a first-frame mask")
         logits, z = self.segment_frame(image)
-        labels, soft = merge_objects(logits, torch.tensor(self.ids))
+        ids = torch.tensor(self.ids)
+        labels, soft = merge_objects(logits, ids)
+        if self.settings.search_radius > 0 and self.previous_labels is not None:
+            drop = outside_search_region(labels.cpu().numpy(), self.previous_labels.cpu().numpy(), self.ids,
+                                         self.settings.search_radius)
+            if drop.any():
+                logits = logits.masked_fill(torch.from_numpy(drop).to(logits.device), DROPPED_LOGIT)
+                labels, soft = merge_objects(logits, ids)
         return labels, soft, z
 
     def update(self, soft: torch.Tensor, z: torch.Tensor) -> None:

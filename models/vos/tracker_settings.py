@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from core.errors import InputError
 from core.processing_size import check_process_height
+from core.search_region import check_search_radius
 from core.settings import SettingsMixin
 from models.vos.target_features import check_feature_norm
 
@@ -40,6 +41,8 @@ class FRTMSettings(SettingsMixin):
             object's mask on a held-out synthetic video; in float64 the masks stayed identical.
         flip_test: with the decoder, average its logits with those of the left-right mirrored frame (test-time
             augmentation, ``models.vos.decoder.flip_averaged_logits``; twice the backbone and decoder work).
+        search_radius: an object's mask keeps only its connected components within ``search_radius`` x sqrt(area)
+            px of its previous mask of that area (all when none is that near; ``core.search_region``); 0: off.
         use_decoder: False segments by thresholding the upsampled target-model score (``target_model_only``).
         seed: seeds the augmentation and the filter initialisation.
         process_height: rows of the frames the tracker works at, aspect kept (``VideoLoop``: frames resized
@@ -65,6 +68,7 @@ class FRTMSettings(SettingsMixin):
     label_stride: int = 1
     optimizer_dtype: str = "float64"
     flip_test: bool = False
+    search_radius: float = 0.0
     use_decoder: bool = True
     seed: int = 0
     process_height: int = 0
@@ -73,6 +77,7 @@ class FRTMSettings(SettingsMixin):
         for name in ("init_schedule", "update_schedule", "reg"):  # YAML and JSON give lists
             object.__setattr__(self, name, tuple(getattr(self, name)))
         check_feature_norm(self.feature_norm, self.feature_scale)
+        check_search_radius(self.search_radius)
         for name in ("pixel_weighting", "flip_test", "use_decoder"):  # a string "false" would read as on
             if not isinstance(getattr(self, name), bool):
                 raise InputError(f"tracker setting {name} must be true or false, got {getattr(self, name)!r}")

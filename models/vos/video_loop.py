@@ -37,6 +37,7 @@ class VideoLoop(ABC):
         """Forget the current video."""
         self.ids: list[int] = []
         self.frame = 0
+        self.previous_labels: torch.Tensor | None = None  # the last frame's labels at the processing size
 
     def _tic(self, device: torch.device) -> float:
         if device.type == "cuda":
@@ -117,6 +118,7 @@ class VideoLoop(ABC):
             labels = torch.where(torch.isin(given, torch.tensor(new_ids)), given, 0).long()
         if new_ids:
             self.add_objects(image, labels.to(image.device), new_ids)
+        self.previous_labels = labels
         return labels
 
 

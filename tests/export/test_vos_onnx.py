@@ -70,6 +70,36 @@ def test_frame_graph_with_flip_test_parity(vos_setup, tmp_path) -> None:
 
 
 @pytest.mark.slow
+def test_search_region_parity(vos_setup) -> None:
+    """The runtime applies the search region as the PyTorch tracker does: on a crafted frame (the object moved, a
+    look-alike far away), both give the far blob to the background, in the labels and in the memory's masks."""
+    base = vos_setup["tracker"]
+    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, search_radius=1.0)).eval()
+    runtime = OnnxFRTMTracker(vos_setup["bundle"])
+    runtime.settings = {**runtime.settings, "search_radius": 1.0}
+    frames = torch.rand(3, 3, 64, 96, generator=torch.Generator().manual_seed(3))
+    first = torch.zeros(64, 96, dtype=torch.long)
+    first[10:20, 10:20] = 1
+    logits = torch.full((1, 64, 96), -5.0)
+    logits[0, 12:22, 13:23] = logits[0, 40:50, 60:70] = 5.0
+    segment_frame, frame_graph, fed = tracker.segment_frame, runtime.graphs["frame"], {"torch": [], "runtime": []}
+    tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
+    runtime.graphs["frame"] = lambda *args: (logits.numpy(), frame_graph(*args)[1])
+    for name, loop in (("torch", tracker), ("runtime", runtime)):
+        update = loop.update
+        loop.update = lambda soft, z, update=update, seen=fed[name]: (seen.append(np.asarray(soft)), update(soft, z))
+    with torch.no_grad():
+        ours = [p.numpy() for p in tracker.segment(frames, {0: first})]
+    theirs = list(runtime.segment(frames.numpy(), {0: first.numpy()}))
+    expected = np.zeros((64, 96), np.int64)
+    expected[12:22, 13:23] = 1
+    for a, b in zip(ours[1:], theirs[1:], strict=True):
+        assert np.array_equal(a, expected) and np.array_equal(b, expected)
+    for soft in fed["torch"] + fed["runtime"]:
+        assert soft[0, 40:50, 60:70].max() < 1e-6 and soft[0, 12:22, 13:23].min() > 0.5
+
+
+@pytest.mark.slow
 def test_mask_parity(vos_setup) -> None:
     frames, labels = synthetic_video(5, n_frames=6, height=64, width=96, n_objects=2)
     videos = [("v", (frames * 255).round().byte(), labels)]

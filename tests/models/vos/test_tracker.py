@@ -114,3 +114,34 @@ def test_process_height_runs_the_tracker_at_that_size(backbone) -> None:
     assert j_up > 0.5 and j_up > j_native - 0.1
     with pytest.raises(InputError, match="process_height"):
         FRTMSettings(process_height=-1)
+
+
+def crafted_frame(tracker: FRTMTracker, logits: torch.Tensor) -> list[torch.Tensor]:
+    """Make ``tracker`` segment every frame with the given logits (its features stay its own); returns the list
+    that collects the soft masks fed to the memory."""
+    segment_frame, update, fed = tracker.segment_frame, tracker.update, []
+    tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
+    tracker.update = lambda soft, z: (fed.append(soft), update(soft, z))[1]
+    return fed
+
+
+def test_search_region_gives_far_components_to_the_background(backbone) -> None:
+    """The object moved by a few px and a look-alike blob far away: with ``search_radius`` 1 (reach 10 px from
+    the previous 10 x 10 mask) the blob is background in the labels and in the memory's soft masks; without the
+    setting it is kept."""
+    frames = torch.rand(3, 3, 64, 96, generator=torch.Generator().manual_seed(0))
+    first = torch.zeros(64, 96, dtype=torch.long)
+    first[10:20, 10:20] = 1
+    logits = torch.full((1, 64, 96), -5.0)
+    logits[0, 12:22, 13:23] = logits[0, 40:50, 60:70] = 5.0
+    moved = torch.zeros_like(first)
+    moved[12:22, 13:23] = 1
+    for radius, expected in ((1.0, moved), (0.0, (logits[0] > 0).long())):
+        tracker = small_tracker(backbone, search_radius=radius, label_stride=1)
+        fed = crafted_frame(tracker, logits)
+        with torch.inference_mode():
+            pred = list(tracker.segment(frames, {0: first}))
+        assert all(torch.equal(p, expected) for p in pred[1:])
+        assert torch.equal(fed[0][0] > 0.5, expected.bool()) and fed[0][0][expected == 0].max() < 1e-6
+    with pytest.raises(InputError, match="search_radius"):
+        FRTMSettings(search_radius=-1.0)

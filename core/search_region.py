@@ -1,0 +1,61 @@
+"""A search region for mask trackers: an object is looked for near where it was (the DCF trackers' search area,
+thesis ch. 3 and 5), so that mask components far from the object's previous mask (a similar-looking distractor
+elsewhere in the frame) are dropped before they enter the object's memory. Shared by the PyTorch trackers and
+the deployment runtime. Torch-free (numpy and OpenCV).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from core.errors import InputError
+
+#: Logit given to dropped pixels: a probability far below the merge's clamp of 1e-7 (a logit of about -16).
+DROPPED_LOGIT = -30.0
+
+
+def check_search_radius(radius: float) -> float:
+    """``radius`` when it is 0 (no search region) or a positive finite number, else an ``InputError`` naming it."""
+    if isinstance(radius, bool) or not isinstance(radius, int | float) or not (math.isfinite(radius) and radius >= 0):
+        raise InputError(f"search_radius must be 0 (off) or a positive multiple of the object's size, got {radius}")
+    return float(radius)
+
+
+def outside_search_region(labels: np.ndarray, previous: np.ndarray, ids: list[int], radius: float) -> np.ndarray:
+    """Pixels of each object's mask that lie in connected components far from the object's previous mask.
+
+    Object ``i``'s mask ``labels == ids[i]`` is split into 8-connected components; a component is *near* when
+    one of its pixels is at most ``radius * sqrt(A)`` px (Euclidean) from the object's previous mask of ``A``
+    pixels. Components that are not near are returned, except when none is near (the object moved further than
+    the region: nothing is dropped) or when the object had no previous mask (it may appear anywhere).
+
+    Args:
+        labels: (H, W) integer label map of the current frame.
+        previous: (H, W) integer label map of the previous frame.
+        ids: the N object ids.
+        radius: the region's reach in units of the square root of the previous mask's area (> 0).
+
+    Returns:
+        (N, H, W) bool, True where object ``ids[i]``'s pixels are dropped.
+    """
+    labels, previous = np.asarray(labels), np.asarray(previous)
+    if labels.ndim != 2 or labels.shape != previous.shape:
+        raise InputError(f"search region needs two (H, W) label maps of one size, got {labels.shape} and "
+                         f"{previous.shape}")
+    if check_search_radius(radius) == 0:
+        raise InputError("search region needs a positive radius")
+    drop = np.zeros((len(ids), *labels.shape), bool)
+    for n, obj in enumerate(ids):  # one distance transform per object, not per pixel
+        before = previous == obj
+        area = int(before.sum())
+        count, components = cv2.connectedComponents((labels == obj).astype(np.uint8), connectivity=8)
+        if area == 0 or count <= 2:  # no previous mask, or at most one component
+            continue
+        distance = cv2.distanceTransform((~before).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        near = np.unique(components[(distance <= radius * math.sqrt(area)) & (components > 0)])
+        if near.size:
+            drop[n] = (components > 0) & ~np.isin(components, near)
+    return drop

@@ -1,0 +1,102 @@
+"""Search region of mask trackers against a brute-force reference: 8-connected components by a flood fill and
+distances to the previous mask as a minimum over all its pixels."""
+
+import math
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from core.search_region import check_search_radius, outside_search_region
+
+
+def flood_components(mask: np.ndarray) -> list[set[tuple[int, int]]]:
+    """8-connected components of a bool mask, as pixel sets, by a breadth-first flood fill."""
+    seen, out = set(), []
+    for start in zip(*np.nonzero(mask), strict=True):
+        if start in seen:
+            continue
+        component, queue = set(), [start]
+        seen.add(start)
+        while queue:
+            r, c = queue.pop()
+            component.add((r, c))
+            for dr in (-1, 0, 1):
+                for dc in (-1, 0, 1):
+                    q = (r + dr, c + dc)
+                    if 0 <= q[0] < mask.shape[0] and 0 <= q[1] < mask.shape[1] and mask[q] and q not in seen:
+                        seen.add(q)
+                        queue.append(q)
+        out.append(component)
+    return out
+
+
+def reference(labels: np.ndarray, previous: np.ndarray, ids: list[int], radius: float) -> np.ndarray:
+    drop = np.zeros((len(ids), *labels.shape), bool)
+    for n, obj in enumerate(ids):
+        before = np.argwhere(previous == obj)
+        components = flood_components(labels == obj)
+        if len(before) == 0 or len(components) < 2:
+            continue
+        reach = radius * math.sqrt(len(before))
+
+        def distance(component: set, before: np.ndarray = before) -> float:
+            pixels = np.array(sorted(component), float)
+            return float(np.sqrt(((pixels[:, None] - before[None]) ** 2).sum(-1)).min())
+
+        near = [distance(c) <= reach for c in components]
+        if any(near):
+            for component, keep in zip(components, near, strict=True):
+                for pixel in component if not keep else ():
+                    drop[(n, *pixel)] = True
+    return drop
+
+
+def random_blobs(rng: np.random.Generator, size: tuple[int, int], ids: list[int], blobs: int) -> np.ndarray:
+    labels = np.zeros(size, np.int64)
+    for obj in ids:
+        for _ in range(blobs):
+            r, c = rng.integers(0, size[0]), rng.integers(0, size[1])
+            h, w = rng.integers(1, 6, size=2)
+            labels[r : r + h, c : c + w] = obj
+    return labels
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_matches_flood_fill_and_brute_force_distances(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    ids = [1, 3]
+    previous = random_blobs(rng, (40, 56), ids, 2)
+    extra = random_blobs(rng, (40, 56), ids, 3)
+    labels = np.where(extra > 0, extra, np.roll(previous, 1, axis=1))  # the objects moved, plus new blobs
+    for radius in (0.5, 1.0, 2.0):
+        ours = outside_search_region(labels, previous, ids, radius)
+        assert np.array_equal(ours, reference(labels, previous, ids, radius))
+    assert outside_search_region(labels, previous, ids, 0.5).any()  # the draw exercises dropping
+
+
+def test_distant_distractor_dropped_and_fallbacks() -> None:
+    previous = np.zeros((60, 80), np.int64)
+    previous[10:20, 10:20] = 1  # area 100: reach 10 px at radius 1
+    labels = previous.copy()
+    labels[12:22, 13:23] = 1  # the object, moved
+    labels[40:50, 60:70] = 1  # a distractor far away
+    drop = outside_search_region(labels, previous, [1], 1.0)
+    assert drop.shape == (1, 60, 80)
+    assert drop[0, 40:50, 60:70].all() and drop[0].sum() == 100
+    assert not outside_search_region(labels, previous, [1], 5.0).any()  # in reach at 50 px
+    assert not outside_search_region(labels, np.zeros_like(previous), [1], 1.0).any()  # no previous mask
+    far = np.zeros_like(labels)
+    far[40:50, 40:50] = far[40:50, 60:70] = 1
+    assert not outside_search_region(far, previous, [1], 1.0).any()  # nothing near: the object jumped
+
+
+def test_bad_inputs_are_named() -> None:
+    labels = np.zeros((4, 5), np.int64)
+    with pytest.raises(InputError, match="one size"):
+        outside_search_region(labels, np.zeros((4, 6), np.int64), [1], 1.0)
+    for radius in (-1.0, float("nan"), float("inf"), "1.5", True):
+        with pytest.raises(InputError, match="search_radius"):
+            check_search_radius(radius)
+    with pytest.raises(InputError, match="positive radius"):
+        outside_search_region(labels, labels, [1], 0.0)
