@@ -1,7 +1,8 @@
 """A search region for mask trackers: an object is looked for near where it was (the DCF trackers' search area,
 thesis ch. 3 and 5), so that mask components far from the object's previous mask (a similar-looking distractor
-elsewhere in the frame) are dropped before they enter the object's memory. Shared by the PyTorch trackers and
-the deployment runtime. Torch-free (numpy and OpenCV).
+elsewhere in the frame) are dropped before they enter the object's memory; and the memory may learn from each
+object's main component only. Shared by the PyTorch trackers and the deployment runtime. Torch-free (numpy and
+OpenCV).
 """
 
 from __future__ import annotations
@@ -59,3 +60,23 @@ def outside_search_region(labels: np.ndarray, previous: np.ndarray, ids: list[in
         if near.size:
             drop[n] = (components > 0) & ~np.isin(components, near)
     return drop
+
+
+def main_component(masks: np.ndarray) -> np.ndarray:
+    """The largest 8-connected component of each mask (the first one in scan order on a tie).
+
+    Args:
+        masks: (N, H, W) bool.
+
+    Returns:
+        (N, H, W) bool, all False for an empty mask.
+    """
+    masks = np.asarray(masks)
+    if masks.ndim != 3 or masks.dtype != bool:
+        raise InputError(f"main component needs (N, H, W) bool masks, got {masks.dtype} {masks.shape}")
+    out = np.zeros_like(masks)
+    for n, mask in enumerate(masks):  # one labelling per object, not per pixel
+        count, components, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+        if count > 1:
+            out[n] = components == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    return out

@@ -22,7 +22,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.first_frame_augment import first_frame_augment
-from core.search_region import DROPPED_LOGIT, outside_search_region
+from core.search_region import DROPPED_LOGIT, main_component, outside_search_region
 from runtime.area import area_resize
 from runtime.bundle import Bundle
 from runtime.video_loop import NumpyVideoLoop, video_command
@@ -168,8 +168,11 @@ class OnnxFRTMTracker(NumpyVideoLoop):
         return labels, soft, z
 
     def update(self, soft: np.ndarray, z: np.ndarray) -> None:
-        """Insert soft masks (N, H, W) and features into the memory; optimise W_f every ``update_every`` frames."""
+        """Insert soft masks (N, H, W) and features into the memory (as ``FRTMLoop.update``); optimise W_f every
+        ``update_every`` frames."""
         start = time.perf_counter()
+        if self.settings.get("memory_main_component", False):
+            soft = soft * main_component(soft > 0.5)
         y = self._label_res(soft)
         rows = [self.graphs["insert"](*(m[i : i + 1] for m in self.memory), z[i : i + 1], y[i : i + 1])
                 for i in range(len(self.ids))]

@@ -19,7 +19,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from core.errors import InputError
-from core.search_region import DROPPED_LOGIT, outside_search_region
+from core.search_region import DROPPED_LOGIT, main_component, outside_search_region
 from models.backbones import Backbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder, flip_averaged_logits
@@ -171,9 +171,12 @@ class FRTMLoop(VideoLoop):
         return labels, soft, z
 
     def update(self, soft: torch.Tensor, z: torch.Tensor) -> None:
-        """Insert merged soft masks (N, H, W) and projected features into memory; optimise every k frames."""
+        """Insert merged soft masks (N, H, W) and projected features into memory (with ``memory_main_component``
+        each object's largest component only); optimise every k frames."""
         device = soft.device
         start = self._tic(device)
+        if self.settings.memory_main_component:
+            soft = soft * torch.from_numpy(main_component((soft > 0.5).cpu().numpy())).to(device, soft.dtype)
         self.insert_samples(z, self._to_label_res(soft))
         if self.frame % self.settings.update_every == 0:
             self.optimize_filters()

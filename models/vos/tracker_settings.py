@@ -43,6 +43,8 @@ class FRTMSettings(SettingsMixin):
             augmentation, ``models.vos.decoder.flip_averaged_logits``; twice the backbone and decoder work).
         search_radius: an object's mask keeps only its connected components within ``search_radius`` x sqrt(area)
             px of its previous mask of that area (all when none is that near; ``core.search_region``); 0: off.
+        memory_main_component: the memory learns from each object's largest connected component (soft mask above
+            0.5) only, the rest of its soft mask set to 0 there (``core.search_region.main_component``).
         use_decoder: False segments by thresholding the upsampled target-model score (``target_model_only``).
         seed: seeds the augmentation and the filter initialisation.
         process_height: rows of the frames the tracker works at, aspect kept (``VideoLoop``: frames resized
@@ -69,6 +71,7 @@ class FRTMSettings(SettingsMixin):
     optimizer_dtype: str = "float64"
     flip_test: bool = False
     search_radius: float = 0.0
+    memory_main_component: bool = False
     use_decoder: bool = True
     seed: int = 0
     process_height: int = 0
@@ -78,7 +81,8 @@ class FRTMSettings(SettingsMixin):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         check_feature_norm(self.feature_norm, self.feature_scale)
         check_search_radius(self.search_radius)
-        for name in ("pixel_weighting", "flip_test", "use_decoder"):  # a string "false" would read as on
+        # a string "false" would read as on
+        for name in ("pixel_weighting", "flip_test", "memory_main_component", "use_decoder"):
             if not isinstance(getattr(self, name), bool):
                 raise InputError(f"tracker setting {name} must be true or false, got {getattr(self, name)!r}")
         check_process_height(self.process_height)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.search_region import check_search_radius, outside_search_region
+from core.search_region import check_search_radius, main_component, outside_search_region
 
 
 def flood_components(mask: np.ndarray) -> list[set[tuple[int, int]]]:
@@ -73,6 +73,21 @@ def test_matches_flood_fill_and_brute_force_distances(seed: int) -> None:
         ours = outside_search_region(labels, previous, ids, radius)
         assert np.array_equal(ours, reference(labels, previous, ids, radius))
     assert outside_search_region(labels, previous, ids, 0.5).any()  # the draw exercises dropping
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_main_component_is_the_largest_flood_fill_component(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    masks = np.stack([random_blobs(rng, (30, 40), [1], 5) == 1 for _ in range(3)] + [np.zeros((30, 40), bool)])
+    expected = np.zeros_like(masks)
+    for n, mask in enumerate(masks):
+        components = flood_components(mask)
+        for pixel in max(components, key=len) if components else ():  # the first largest in scan order
+            expected[(n, *pixel)] = True
+    assert np.array_equal(main_component(masks), expected)
+    assert (masks.sum((1, 2)) > expected.sum((1, 2)))[:3].any()  # the draw has masks of several components
+    with pytest.raises(InputError, match="bool"):
+        main_component(masks.astype(np.uint8))
 
 
 def test_distant_distractor_dropped_and_fallbacks() -> None:

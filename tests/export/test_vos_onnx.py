@@ -71,32 +71,37 @@ def test_frame_graph_with_flip_test_parity(vos_setup, tmp_path) -> None:
 
 @pytest.mark.slow
 def test_search_region_parity(vos_setup) -> None:
-    """The runtime applies the search region as the PyTorch tracker does: on a crafted frame (the object moved, a
-    look-alike far away), both give the far blob to the background, in the labels and in the memory's masks."""
+    """The runtime applies the search region and the memory's main component as the PyTorch tracker does: on a
+    crafted frame (the object moved, a small blob beside it, a look-alike far away) both give the far blob to the
+    background, keep the near one in the labels, and insert the same memory labels (the object's component only)."""
     base = vos_setup["tracker"]
-    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, search_radius=1.0)).eval()
+    settings = {"search_radius": 1.0, "memory_main_component": True}
+    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, **settings)).eval()
     runtime = OnnxFRTMTracker(vos_setup["bundle"])
-    runtime.settings = {**runtime.settings, "search_radius": 1.0}
+    runtime.settings = {**runtime.settings, **settings}
     frames = torch.rand(3, 3, 64, 96, generator=torch.Generator().manual_seed(3))
     first = torch.zeros(64, 96, dtype=torch.long)
     first[10:20, 10:20] = 1
     logits = torch.full((1, 64, 96), -5.0)
-    logits[0, 12:22, 13:23] = logits[0, 40:50, 60:70] = 5.0
-    segment_frame, frame_graph, fed = tracker.segment_frame, runtime.graphs["frame"], {"torch": [], "runtime": []}
+    logits[0, 12:22, 13:23] = logits[0, 12:16, 26:30] = logits[0, 40:50, 60:70] = 5.0
+    segment_frame, frame_graph, insert_graph = tracker.segment_frame, runtime.graphs["frame"], runtime.graphs["insert"]
     tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
     runtime.graphs["frame"] = lambda *args: (logits.numpy(), frame_graph(*args)[1])
-    for name, loop in (("torch", tracker), ("runtime", runtime)):
-        update = loop.update
-        loop.update = lambda soft, z, update=update, seen=fed[name]: (seen.append(np.asarray(soft)), update(soft, z))
+    inserted = {"torch": [], "runtime": []}
+    insert = tracker.insert_samples
+    tracker.insert_samples = lambda z, y: (inserted["torch"].append(y.numpy()), insert(z, y))[1]
+    runtime.graphs["insert"] = lambda *args: (inserted["runtime"].append(args[-1]), insert_graph(*args))[1]
     with torch.no_grad():
         ours = [p.numpy() for p in tracker.segment(frames, {0: first})]
     theirs = list(runtime.segment(frames.numpy(), {0: first.numpy()}))
     expected = np.zeros((64, 96), np.int64)
-    expected[12:22, 13:23] = 1
+    expected[12:22, 13:23] = expected[12:16, 26:30] = 1
     for a, b in zip(ours[1:], theirs[1:], strict=True):
         assert np.array_equal(a, expected) and np.array_equal(b, expected)
-    for soft in fed["torch"] + fed["runtime"]:
-        assert soft[0, 40:50, 60:70].max() < 1e-6 and soft[0, 12:22, 13:23].min() > 0.5
+    assert len(inserted["torch"]) == len(inserted["runtime"]) == 2
+    for a, b in zip(inserted["torch"], inserted["runtime"], strict=True):  # labels at half resolution
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
+        assert a[0, 6:11, 7:11].min() > 0.5 and a[0, 6:8, 13:15].max() == 0 and a[0, 20:25, 30:35].max() == 0
 
 
 @pytest.mark.slow

@@ -145,3 +145,23 @@ def test_search_region_gives_far_components_to_the_background(backbone) -> None:
         assert torch.equal(fed[0][0] > 0.5, expected.bool()) and fed[0][0][expected == 0].max() < 1e-6
     with pytest.raises(InputError, match="search_radius"):
         FRTMSettings(search_radius=-1.0)
+
+
+def test_memory_main_component_keeps_stray_blobs_out_of_the_memory(backbone) -> None:
+    """A small blob near the object survives the search region and stays in the labels; with
+    ``memory_main_component`` the memory's labels hold the object's 10 x 10 component only."""
+    frames = torch.rand(2, 3, 64, 96, generator=torch.Generator().manual_seed(1))
+    first = torch.zeros(64, 96, dtype=torch.long)
+    first[10:20, 10:20] = 1
+    logits = torch.full((1, 64, 96), -5.0)
+    logits[0, 12:22, 13:23] = logits[0, 12:15, 26:29] = 5.0  # the object and a 3 x 3 blob 3 px beside it
+    for main, blob_in_memory in ((True, False), (False, True)):
+        tracker = small_tracker(backbone, search_radius=1.0, label_stride=1, memory_main_component=main)
+        crafted_frame(tracker, logits)
+        insert, inserted = tracker.insert_samples, []
+        tracker.insert_samples = lambda z, y, insert=insert, seen=inserted: (seen.append(y), insert(z, y))[1]
+        with torch.inference_mode():
+            pred = list(tracker.segment(frames, {0: first}))
+        assert torch.equal(pred[1], (logits[0] > 0).long())
+        assert (inserted[0][0, 12:15, 26:29] > 0.5).all() == blob_in_memory
+        assert (inserted[0][0, 12:22, 13:23] > 0.5).all()
