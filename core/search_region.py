@@ -52,8 +52,10 @@ def outside_search_region(labels: np.ndarray, previous: np.ndarray, ids: list[in
     for n, obj in enumerate(ids):  # one distance transform per object, not per pixel
         before = previous == obj
         area = int(before.sum())
+        if area == 0:  # no previous mask: the object may be anywhere
+            continue
         count, components = cv2.connectedComponents((labels == obj).astype(np.uint8), connectivity=8)
-        if area == 0 or count <= 2:  # no previous mask, or at most one component
+        if count <= 2:  # at most one component
             continue
         distance = cv2.distanceTransform((~before).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
         near = np.unique(components[(distance <= radius * math.sqrt(area)) & (components > 0)])

@@ -7,7 +7,8 @@ frames. A new object (in the first frame or later) gets the first-frame augmenta
 then W_p is frozen. With ``flip_test`` the decoder's logits are averaged with those of the mirrored frame. With
 ``use_decoder=False`` the upsampled target-model score thresholded at 0.5 replaces the decoder (the
 ``target_model_only`` baseline). With ``search_radius`` an object's mask keeps only the components near its
-previous mask (a search region, as the DCF trackers have; ``core.search_region``).
+previous mask (a search region, as the DCF trackers have; ``core.search_region``); with
+``memory_main_component`` the memory learns from each object's largest component only.
 """
 
 from __future__ import annotations
