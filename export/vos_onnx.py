@@ -130,7 +130,7 @@ class InsertGraph(nn.Module):
         super().__init__()
         s = tracker.settings
         self.t = {"lr": s.learning_rate, "pixel_weighting": s.pixel_weighting, "fg_target": s.fg_target,
-                  "min_pixels": s.min_update_pixels}
+                  "min_pixels": s.min_update_pixels, "keep_first": s.keep_first}
 
     def forward(self, features, labels, pixel_weights, weights, newest, z, label):
         mem = frame_memory_insert(Memory(features, labels, pixel_weights, weights, newest), z, label, **self.t)

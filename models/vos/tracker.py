@@ -8,7 +8,8 @@ then W_p is frozen. With ``flip_test`` the decoder's logits are averaged with th
 ``use_decoder=False`` the upsampled target-model score thresholded at 0.5 replaces the decoder (the
 ``target_model_only`` baseline). With ``search_radius`` an object's mask keeps only the components near its
 previous mask (a search region, as the DCF trackers have; ``core.search_region``); with
-``memory_main_component`` the memory learns from each object's largest component only.
+``memory_main_component`` the memory learns from each object's largest component only; with ``keep_first`` the
+first frame keeps a share of the memory's weight (LWL's rule).
 """
 
 from __future__ import annotations
@@ -43,12 +44,14 @@ def frame_memory_insert(
     pixel_weighting: bool = True,
     fg_target: float = 0.1,
     min_pixels: int = 10,
+    keep_first: float = 0.0,
 ) -> Memory:
     """Insert one frame per object: projected features z (B, C, h, w) and soft labels (B, H', W'); an object
-    whose label has fewer than ``min_pixels`` pixels above 0.5 is skipped. Pixel weights follow the hinge rule."""
+    whose label has fewer than ``min_pixels`` pixels above 0.5 is skipped. Pixel weights follow the hinge rule;
+    ``keep_first`` as in ``memory_insert``."""
     valid = (labels > 0.5).flatten(1).sum(1) >= min_pixels
     v = hinge_pixel_weights(labels[:, None], fg_target, min_pixels)[:, 0] if pixel_weighting else labels * 0 + 1
-    return memory_insert(memory, z, labels, v, valid, lr)
+    return memory_insert(memory, z, labels, v, valid, lr, keep_first)
 
 
 class FRTMLoop(VideoLoop):
@@ -258,7 +261,7 @@ class FRTMTracker(nn.Module, FRTMLoop):
         """Insert projected features (N, C, h, w) and soft labels (N, H', W') into the memory."""
         s = self.settings
         self.memory = frame_memory_insert(self.memory, z, y, s.learning_rate, s.pixel_weighting, s.fg_target,
-                                          s.min_update_pixels)
+                                          s.min_update_pixels, s.keep_first)
 
     def optimize_filters(self) -> None:
         """Re-optimise W_f on the filled memory slots."""

@@ -28,6 +28,9 @@ class FRTMSettings(SettingsMixin):
         kernel_size: W_f size (3).
         num_aug: first-frame samples including the original (5).
         memory_size: memory capacity in frames (80); learning_rate: memory weight decay rate (0.1).
+        keep_first: share of the total memory weight the first frame (the given mask) always keeps, its slot
+            never replaced (LWL's rule, 0.25 there; ``models.vos.memory.memory_insert``); 0 (the paper's FRTM): it
+            decays like every other sample.
         update_every: re-optimise W_f when frame % update_every == 0 (8).
         init_schedule / update_schedule: CG iterations per Gauss-Newton step ((5, 10, 10, 10, 10) / (10,)).
         reg: (lambda_p, lambda_f) regularisation of eq. 5.2 (1e-4, 1e-2).
@@ -59,6 +62,7 @@ class FRTMSettings(SettingsMixin):
     num_aug: int = 5
     memory_size: int = 80
     learning_rate: float = 0.1
+    keep_first: float = 0.0
     update_every: int = 8
     init_schedule: tuple[int, ...] = (5, 10, 10, 10, 10)
     update_schedule: tuple[int, ...] = (10,)
@@ -93,6 +97,11 @@ class FRTMSettings(SettingsMixin):
         for name in ("channels", "num_aug", "memory_size", "update_every", "label_stride"):
             if getattr(self, name) < 1:
                 raise InputError(f"tracker setting {name} must be at least 1, got {getattr(self, name)}")
+        share = self.keep_first
+        if isinstance(share, bool) or not isinstance(share, int | float) or not 0 <= share < 1:
+            raise InputError(f"tracker setting keep_first must lie in [0, 1), got {self.keep_first!r}")
+        if self.keep_first > 0 and self.memory_size < 2:
+            raise InputError("tracker setting keep_first needs memory_size >= 2")
         if self.kernel_size < 1 or self.kernel_size % 2 == 0:
             raise InputError(f"tracker setting kernel_size must be odd and positive, got {self.kernel_size}")
         if len(self.reg) != 2 or min(self.reg) < 0:

@@ -3,6 +3,7 @@ the init graph starts from the tracker's seeded filters; the frame graph with th
 parity of the runtime against PyTorch, the manifest's settings; an int8 export calibrated on real DAVIS frames."""
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,9 +15,11 @@ from data.vos.davis import load_davis_videos
 from data.vos.synthetic import synthetic_video
 from export.onnx import export_onnx
 from export.parity import mask_parity
-from export.vos_onnx import FrameGraph, apply_filter_per_object, export_bundle
+from export.vos_onnx import FrameGraph, InsertGraph, apply_filter_per_object, export_bundle
+from models.vos.memory import Memory
 from models.vos.target_model import apply_filter
-from models.vos.tracker import FRTMTracker
+from models.vos.tracker import FRTMTracker, frame_memory_insert
+from models.vos.tracker_settings import FRTMSettings
 from runtime.bundle import Bundle
 from runtime.session import Graph
 from runtime.vos import OnnxFRTMTracker
@@ -129,3 +132,24 @@ def test_int8_export_calibrated_on_davis_frames(vos_setup, shared_data, tmp_path
     assert Bundle(tmp_path / "int8", "vos").manifest["precision"] == "int8"
     with pytest.raises(InputError, match="not in DAVIS split"):
         load_davis_videos(shared_data / "davis2016", "train", "240p", ["no-such-sequence"], 3)
+
+
+def test_insert_graph_keeps_the_first_frame(tmp_path) -> None:
+    """The exported insertion carries ``keep_first``: over more insertions than slots, onnxruntime's memory equals
+    PyTorch's (``frame_memory_insert``) and the first slot keeps its features and share of the weight."""
+    tracker = SimpleNamespace(settings=FRTMSettings(keep_first=0.3))  # the graph reads only the settings
+    g = torch.Generator().manual_seed(4)
+    mem = Memory(torch.rand(1, 4, 8, 5, 6, generator=g), torch.rand(1, 4, 10, 12, generator=g),
+                 torch.ones(1, 4, 10, 12), torch.tensor([[0.4, 0.2, 0.2, 0.2]]), torch.tensor([2]))
+    z, label = torch.rand(1, 8, 5, 6, generator=g), torch.zeros(1, 10, 12)
+    label[0, 2:8, 3:9] = 1
+    graph = Graph(export_onnx(InsertGraph(tracker), (*mem, z, label), tmp_path / "insert.onnx",
+                              ["features", "labels", "pixel_weights", "weights", "newest", "z", "label"],
+                              ["features_out", "labels_out", "pixel_weights_out", "weights_out", "newest_out"]))
+    ours, theirs = mem, [t.numpy() for t in mem]
+    for _ in range(6):
+        ours = frame_memory_insert(ours, z, label, keep_first=0.3)
+        theirs = graph(*theirs, z.numpy(), label.numpy())
+    for a, b in zip(theirs, ours, strict=True):
+        np.testing.assert_allclose(a, b.numpy(), rtol=1e-5, atol=1e-6)
+    assert np.array_equal(theirs[0][0, 0], mem.features[0, 0].numpy()) and theirs[3][0, 0] >= 0.3 - 1e-6

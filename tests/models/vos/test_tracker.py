@@ -165,3 +165,21 @@ def test_memory_main_component_keeps_stray_blobs_out_of_the_memory(backbone) -> 
         assert torch.equal(pred[1], (logits[0] > 0).long())
         assert (inserted[0][0, 12:15, 26:29] > 0.5).all() == blob_in_memory
         assert (inserted[0][0, 12:22, 13:23] > 0.5).all()
+
+
+def test_keep_first_holds_the_given_mask_in_the_memory(backbone) -> None:
+    """Over a video longer than the memory, ``keep_first`` keeps the first frame's slot (its features as fitted on
+    the given mask) with at least that share of the weight; without it (the paper's FRTM) the slot is replaced (a
+    fast decay, learning rate 0.5, makes it the lightest within the video)."""
+    frames, labels = synthetic_video(12, n_frames=10, height=64, width=96, n_distractors=0, motion=0.5)
+    for share in (0.3, 0.0):
+        tracker = small_tracker(backbone, memory_size=4, learning_rate=0.5, keep_first=share)
+        with torch.inference_mode():
+            frames_iter = iter(tracker.segment(frames, {0: labels[0]}))
+            next(frames_iter)
+            first = tracker.memory.features[0, 0].clone()
+            list(frames_iter)
+        kept = torch.equal(tracker.memory.features[0, 0], first)
+        assert kept == (share > 0)
+        if share:
+            assert float(tracker.memory.weights[0, 0]) >= share - 1e-6

@@ -33,6 +33,12 @@ def test_json_round_trip_and_lists_become_tuples() -> None:
     ({"feature_norm": "batch"}, "feature_norm must be one of"),
     ({"flip_test": "false"}, "flip_test must be true or false"),
     ({"use_decoder": 1}, "use_decoder must be true or false"),
+    ({"keep_first": 1.0}, "keep_first must lie in"),
+    ({"keep_first": -0.1}, "keep_first must lie in"),
+    ({"keep_first": "0.25"}, "keep_first must lie in"),
+    ({"keep_first": True}, "keep_first must lie in"),
+    ({"keep_first": float("nan")}, "keep_first must lie in"),
+    ({"keep_first": 0.25, "memory_size": 1}, "keep_first needs memory_size >= 2"),
 ])
 def test_bad_settings_are_named(change, message) -> None:
     with pytest.raises(InputError, match=message):
