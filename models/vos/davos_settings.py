@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from core.errors import InputError
 from core.settings import SettingsMixin
+from models.vos.memory import check_keep_first
 
 
 @dataclass(frozen=True)
@@ -43,9 +44,6 @@ class DAVOSSettings(SettingsMixin):
         for name in ("update_every", "memory_size"):
             if getattr(self, name) < 1:
                 raise InputError(f"tracker setting {name} must be at least 1, got {getattr(self, name)}")
-        if self.memory_size < 2 and self.keep_first > 0:
-            raise InputError("tracker setting keep_first needs memory_size >= 2")
         if not 0 < self.learning_rate < 1:
             raise InputError(f"tracker setting learning_rate must lie in (0, 1), got {self.learning_rate}")
-        if not 0 <= self.keep_first < 1:
-            raise InputError(f"tracker setting keep_first must lie in [0, 1), got {self.keep_first}")
+        check_keep_first(self.keep_first, self.memory_size)

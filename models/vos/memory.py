@@ -32,6 +32,16 @@ class Memory(NamedTuple):
     newest: torch.Tensor
 
 
+def check_keep_first(share: float, memory_size: int) -> float:
+    """``share`` (``memory_insert``'s ``keep_first``) when it is a number in [0, 1) that a memory of ``memory_size``
+    slots can hold (a positive share needs a second slot), else an ``InputError`` naming the tracker setting."""
+    if isinstance(share, bool) or not isinstance(share, int | float) or not 0 <= share < 1:
+        raise InputError(f"tracker setting keep_first must lie in [0, 1), got {share!r}")
+    if share > 0 and memory_size < 2:
+        raise InputError("tracker setting keep_first needs memory_size >= 2")
+    return float(share)
+
+
 def memory_init(
     features: torch.Tensor,
     labels: torch.Tensor,

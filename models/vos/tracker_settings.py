@@ -9,6 +9,7 @@ from core.errors import InputError
 from core.processing_size import check_process_height
 from core.search_region import check_search_radius
 from core.settings import SettingsMixin
+from models.vos.memory import check_keep_first
 from models.vos.target_features import check_feature_norm
 
 OPTIMIZERS = ("gauss_newton", "steepest_descent")
@@ -97,11 +98,7 @@ class FRTMSettings(SettingsMixin):
         for name in ("channels", "num_aug", "memory_size", "update_every", "label_stride"):
             if getattr(self, name) < 1:
                 raise InputError(f"tracker setting {name} must be at least 1, got {getattr(self, name)}")
-        share = self.keep_first
-        if isinstance(share, bool) or not isinstance(share, int | float) or not 0 <= share < 1:
-            raise InputError(f"tracker setting keep_first must lie in [0, 1), got {self.keep_first!r}")
-        if self.keep_first > 0 and self.memory_size < 2:
-            raise InputError("tracker setting keep_first needs memory_size >= 2")
+        check_keep_first(self.keep_first, self.memory_size)
         if self.kernel_size < 1 or self.kernel_size % 2 == 0:
             raise InputError(f"tracker setting kernel_size must be odd and positive, got {self.kernel_size}")
         if len(self.reg) != 2 or min(self.reg) < 0:
