@@ -14,6 +14,7 @@ from core.errors import InputError
 from data.vos.davis import davis_sequences
 from data.vos.io import VOSSequence
 from data.vos.synthetic import synthetic_video, synthetic_video_seeds
+from data.vos.zoom import zoom_on_object
 
 
 def training_sample(
@@ -68,6 +69,9 @@ class SequenceTrainingSamples(Dataset):
     within ``max_gap`` after it, with the object at least ``min_pixels`` large in the reference frame; with
     probability ``hflip`` the whole sample is mirrored left-right; with ``crop`` (h, w) every frame of a sample
     is cut to the same window, centred on the target in the reference frame give or take a quarter window.
+    With probability ``zoom_prob`` the test frames are magnified around the object by one of ``zooms`` (chosen
+    uniformly; ``data.vos.zoom``), so the object is larger than in the reference; ``test_zoom`` (T,) says by how
+    much each test frame was (1: not zoomed).
 
     References are every ``reference_every``-th annotated frame (1: any). Without ``crop`` a sample also names
     what it was cut from, so a trainer on a frozen backbone can reuse features and fitted target models (FRTM
@@ -85,6 +89,8 @@ class SequenceTrainingSamples(Dataset):
         seed: int = 0,
         crop: tuple[int, int] | list[int] | None = None,
         reference_every: int = 1,
+        zooms: Sequence[float] = (),
+        zoom_prob: float = 0.0,
     ) -> None:
         if not sequences:
             raise InputError("no training sequences")
@@ -92,7 +98,12 @@ class SequenceTrainingSamples(Dataset):
             raise InputError(f"reference_every must be at least 1, got {reference_every}")
         if crop is not None and (len(crop) != 2 or min(crop) < 1):
             raise InputError(f"crop must be (height, width) in pixels, got {crop}")
+        if not 0 <= zoom_prob <= 1 or (zoom_prob > 0 and not zooms) or any(not z >= 1 for z in zooms):
+            raise InputError(f"zoom_prob must be in [0, 1] and zooms at least 1 (needed when zoom_prob > 0), got "
+                             f"zoom_prob {zoom_prob} and zooms {list(zooms)}")
         self.crop = None if crop is None else (int(crop[0]), int(crop[1]))
+        self.zooms = tuple(float(z) for z in zooms)
+        self.zoom_prob = float(zoom_prob)
         self.sequences = sequences
         self.n_samples = n_samples
         self.n_test_frames = n_test_frames
@@ -133,6 +144,21 @@ class SequenceTrainingSamples(Dataset):
         ids = [k for k in labels.unique().tolist() if 0 < k < 255 and int((labels == k).sum()) >= self.min_pixels]
         return ids[int(torch.randint(len(ids), (), generator=gen))] if ids else None
 
+    def zoom(self, gen: torch.Generator, sample: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        """With probability ``zoom_prob``, the test frames, masks and distractor masks magnified around the object
+        by one of ``zooms``; ``test_zoom`` (T,) set. No random draw is made when ``zoom_prob`` is 0."""
+        n = sample["test_masks"].shape[0]
+        sample["test_zoom"] = torch.ones(n)
+        if self.zoom_prob == 0 or float(torch.rand((), generator=gen)) >= self.zoom_prob:
+            return sample
+        z = self.zooms[int(torch.randint(len(self.zooms), (), generator=gen))]
+        stacked = torch.cat([sample["test_images"], sample["test_distractors"][:, None]], 1)
+        stacked, masks, zoomed = zoom_on_object(stacked, sample["test_masks"], z)
+        sample["test_images"], sample["test_masks"] = stacked[:, :-1], masks
+        sample["test_distractors"] = (stacked[:, -1] > 0.5).float()
+        sample["test_zoom"] = torch.tensor([z if done else 1.0 for done in zoomed])
+        return sample
+
     def mirror(self, gen: torch.Generator, sample: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         """The sample mirrored left-right with probability ``hflip`` (``sample_key``'s last entry says so), then
         cut to ``crop`` (and ``sample_key`` and ``test_index`` dropped: the frames are no longer whole)."""
@@ -141,7 +167,7 @@ class SequenceTrainingSamples(Dataset):
             sample["sample_key"][-1] = 1
         if self.crop is None:
             return sample
-        sample = {k: v for k, v in sample.items() if k not in ("sample_key", "test_index")}
+        sample = {k: v for k, v in sample.items() if k not in ("sample_key", "test_index", "test_zoom")}
         h, w = sample["ref_mask"].shape
         ch, cw = min(self.crop[0], h), min(self.crop[1], w)
         ys, xs = torch.nonzero(sample["ref_mask"] > 0.5, as_tuple=True)
@@ -165,7 +191,7 @@ class SequenceTrainingSamples(Dataset):
             sample = training_sample(frames, labels, obj, ref, tests)
             sample["sample_key"] = torch.tensor([s, obj, ref, 0])
             sample["test_index"] = torch.tensor(tests)
-            return self.mirror(gen, sample)
+            return self.mirror(gen, self.zoom(gen, sample))
         raise InputError("no sequence yields a training sample (objects too small or videos too short)")
 
 
@@ -285,7 +311,8 @@ class DavisVOSDataModule(VideoDataModule):
         scale: resize factor applied to frames and masks after loading (1 = as stored).
         hflip: probability of mirroring a training sample left-right; crop: (h, w) training windows around the
             target; reference_every: references only at every n-th frame, so that a trainer caching fitted target
-            models meets each one several times (``SequenceTrainingSamples``).
+            models meets each one several times (``SequenceTrainingSamples``); test_zooms, test_zoom_prob: with
+            that probability a sample's test frames are magnified around the object by one of the zooms.
         val_max_frames: cut evaluation videos to this many frames (None = all).
     """
 
@@ -304,6 +331,8 @@ class DavisVOSDataModule(VideoDataModule):
         hflip: float = 0.0,
         crop: tuple[int, int] | None = None,
         reference_every: int = 1,
+        test_zooms: tuple[float, ...] = (),
+        test_zoom_prob: float = 0.0,
         val_max_frames: int | None = None,
         batch_size: int = 4,
         num_workers: int = 0,
@@ -320,7 +349,8 @@ class DavisVOSDataModule(VideoDataModule):
         h = self.hparams
         seqs = self._sequences(h.train_split, h.train_sequences)
         return SequenceTrainingSamples(seqs, h.train_samples, h.n_test_frames, h.max_gap, scale=h.scale,
-                                       hflip=h.hflip, seed=h.seed, crop=h.crop, reference_every=h.reference_every)
+                                       hflip=h.hflip, seed=h.seed, crop=h.crop, reference_every=h.reference_every,
+                                       zooms=h.test_zooms, zoom_prob=h.test_zoom_prob)
 
     def evaluation_videos(self, stage: str) -> Videos:
         h = self.hparams

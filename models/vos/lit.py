@@ -63,7 +63,8 @@ class FRTMSegmentation(VOSEvaluation):
             ``fit`` starts from (fine-tuning, e.g. synthetic -> DAVIS). Unlike ``--ckpt_path`` it restores no
             optimizer, epoch or scheduler state; a resumed ``--ckpt_path`` still wins.
         cache_training: keep every fitted target model (per sequence, object, reference frame and mirroring) and
-            every test frame's backbone features (float16) in memory and reuse them; needs a frozen backbone
+            every test frame's backbone features (float16; per mirroring and ``test_zoom``) in memory and reuse
+            them; needs a frozen backbone
             and samples with ``sample_key`` / ``test_index`` (``DavisVOSDataModule`` without crop; its
             ``reference_every`` bounds the fits). Each reference then keeps one first-frame augmentation.
             Memory: about 0.6 MB per 240p frame and mirroring with EfficientNet-Lite0.
@@ -170,8 +171,11 @@ class FRTMSegmentation(VOSEvaluation):
             return {"wp": wp, "wf": wf}
 
         fitted = self._fitted(keys, fit)
-        frames = [(s, f, m) for (s, _, _, m), tests in zip(keys, batch["test_index"].tolist(), strict=True)
-                  for f in tests]
+        zooms = batch["test_zoom"].tolist() if "test_zoom" in batch else [[1.0] * len(t) for t in batch["test_index"]]
+        # a zoomed frame's window is centred on its object, so the object is part of its key
+        frames = [(s, f, m) if z == 1 else (s, f, m, o, z)
+                  for (s, o, _, m), tests, zs in zip(keys, batch["test_index"].tolist(), zooms, strict=True)
+                  for f, z in zip(tests, zs, strict=True)]
         test = batch["test_images"].flatten(0, 1)
         with torch.no_grad():
             feats = self._test_features(frames, lambda pos: self.backbone(test[pos]))

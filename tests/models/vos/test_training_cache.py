@@ -82,3 +82,20 @@ def test_cache_training_needs_a_frozen_backbone_and_named_samples() -> None:
     batch = torch.utils.data.default_collate([ds[0], ds[1]])
     with pytest.raises(InputError, match="sample_key"):
         _model(cache_training=True).training_step(batch, 0)
+
+
+def test_zoomed_test_frames_are_cached_apart_from_the_unzoomed_ones() -> None:
+    args = dict(n_test_frames=2, max_gap=3, min_pixels=10, seed=4)
+    collate = torch.utils.data.default_collate
+    plain = collate([SequenceTrainingSamples([FakeSequence()], 2, **args)[i] for i in range(2)])
+    zoom = SequenceTrainingSamples([FakeSequence()], 2, zooms=[2.0], zoom_prob=1.0, **args)
+    zoomed = collate([zoom[i] for i in range(2)])
+    model = _model(cache_training=True)
+    model.training_step(plain, 0)
+    n_plain = len(model._test_features)
+    frames = zoomed["test_images"].flatten(0, 1)
+    _, _, feats = model._cached_inputs(zoomed)
+    assert len(model._test_features) == 2 * n_plain  # every test frame again, zoomed
+    expected = model.backbone(frames)
+    for name, value in feats.items():
+        torch.testing.assert_close(value, expected[name], rtol=2e-3, atol=2e-3)  # float16 storage
