@@ -69,9 +69,9 @@ class SequenceTrainingSamples(Dataset):
     within ``max_gap`` after it, with the object at least ``min_pixels`` large in the reference frame; with
     probability ``hflip`` the whole sample is mirrored left-right; with ``crop`` (h, w) every frame of a sample
     is cut to the same window, centred on the target in the reference frame give or take a quarter window.
-    With probability ``zoom_prob`` the test frames are magnified around the object by one of ``zooms`` (chosen
-    uniformly; ``data.vos.zoom``), so the object is larger than in the reference; ``test_zoom`` (T,) says by how
-    much each test frame was (1: not zoomed).
+    With probability ``zoom_prob`` the test frames are scaled around the object by one of ``zooms`` (chosen
+    uniformly; ``data.vos.zoom``), so the object is larger (zoom > 1) or smaller (< 1) than in the reference;
+    ``test_zoom`` (T,) says by how much each test frame was (1: not zoomed).
 
     References are every ``reference_every``-th annotated frame (1: any). Without ``crop`` a sample also names
     what it was cut from, so a trainer on a frozen backbone can reuse features and fitted target models (FRTM
@@ -98,8 +98,8 @@ class SequenceTrainingSamples(Dataset):
             raise InputError(f"reference_every must be at least 1, got {reference_every}")
         if crop is not None and (len(crop) != 2 or min(crop) < 1):
             raise InputError(f"crop must be (height, width) in pixels, got {crop}")
-        if not 0 <= zoom_prob <= 1 or (zoom_prob > 0 and not zooms) or any(not z >= 1 for z in zooms):
-            raise InputError(f"zoom_prob must be in [0, 1] and zooms at least 1 (needed when zoom_prob > 0), got "
+        if not 0 <= zoom_prob <= 1 or (zoom_prob > 0 and not zooms) or any(not z > 0 for z in zooms):
+            raise InputError(f"zoom_prob must be in [0, 1] and zooms positive (needed when zoom_prob > 0), got "
                              f"zoom_prob {zoom_prob} and zooms {list(zooms)}")
         self.crop = None if crop is None else (int(crop[0]), int(crop[1]))
         self.zooms = tuple(float(z) for z in zooms)
@@ -145,8 +145,8 @@ class SequenceTrainingSamples(Dataset):
         return ids[int(torch.randint(len(ids), (), generator=gen))] if ids else None
 
     def zoom(self, gen: torch.Generator, sample: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
-        """With probability ``zoom_prob``, the test frames, masks and distractor masks magnified around the object
-        by one of ``zooms``; ``test_zoom`` (T,) set. No random draw is made when ``zoom_prob`` is 0."""
+        """With probability ``zoom_prob``, the test frames, masks and distractor masks scaled around the object by
+        one of ``zooms``; ``test_zoom`` (T,) set. No random draw is made when ``zoom_prob`` is 0."""
         n = sample["test_masks"].shape[0]
         sample["test_zoom"] = torch.ones(n)
         if self.zoom_prob == 0 or float(torch.rand((), generator=gen)) >= self.zoom_prob:
@@ -312,7 +312,8 @@ class DavisVOSDataModule(VideoDataModule):
         hflip: probability of mirroring a training sample left-right; crop: (h, w) training windows around the
             target; reference_every: references only at every n-th frame, so that a trainer caching fitted target
             models meets each one several times (``SequenceTrainingSamples``); test_zooms, test_zoom_prob: with
-            that probability a sample's test frames are magnified around the object by one of the zooms.
+            that probability a sample's test frames are scaled around the object by one of the zooms (> 1
+            magnifies, < 1 shrinks the frame onto a black canvas).
         val_max_frames: cut evaluation videos to this many frames (None = all).
     """
 

@@ -1,6 +1,6 @@
-"""Zoom into a frame around its object: a training augmentation that shows the decoder an object larger than in
-the reference frame its target model was fitted on (the object grows between the given mask and a later frame,
-e.g. a car driving towards the camera)."""
+"""Zoom a frame around its object: a training augmentation that shows the decoder an object larger (zoom > 1) or
+smaller (zoom < 1) than in the reference frame its target model was fitted on (the object grows or shrinks between
+the given mask and a later frame, e.g. a car driving towards or away from the camera)."""
 
 from __future__ import annotations
 
@@ -11,25 +11,27 @@ from core.errors import InputError
 
 
 def zoom_window(mask: torch.Tensor, zoom: float) -> tuple[int, int, int, int] | None:
-    """The window (top, left, height, width) in pixels that, resized to the mask's size, magnifies the object by
-    ``zoom``: 1/zoom of each side, centred on the object's centroid and shifted inside the frame; None when the
-    mask (H, W) is empty."""
-    if zoom < 1:
-        raise InputError(f"zoom must be at least 1, got {zoom}")
+    """The window (top, left, height, width) in pixels that, resized to the mask's size, scales the object by
+    ``zoom``: 1/zoom of each side, centred on the object's centroid and shifted inside the frame (zoom > 1) or
+    shifted to hold the whole frame (zoom < 1: the window reaches past the frame's borders); None when the mask
+    (H, W) is empty."""
+    if not zoom > 0:
+        raise InputError(f"zoom must be positive, got {zoom}")
     ys, xs = torch.nonzero(mask > 0.5, as_tuple=True)
     if ys.numel() == 0:
         return None
     h, w = mask.shape
     ch, cw = max(1, round(h / zoom)), max(1, round(w / zoom))
-    top = min(max(round(float(ys.float().mean()) + 0.5 - ch / 2), 0), h - ch)
-    left = min(max(round(float(xs.float().mean()) + 0.5 - cw / 2), 0), w - cw)
+    top = min(max(round(float(ys.float().mean()) + 0.5 - ch / 2), min(0, h - ch)), max(0, h - ch))
+    left = min(max(round(float(xs.float().mean()) + 0.5 - cw / 2), min(0, w - cw)), max(0, w - cw))
     return top, left, ch, cw
 
 
 def zoom_on_object(
     images: torch.Tensor, masks: torch.Tensor, zoom: float
 ) -> tuple[torch.Tensor, torch.Tensor, list[bool]]:
-    """Magnify each frame by ``zoom`` around the object in its mask (bilinear; masks thresholded back to {0, 1}).
+    """Scale each frame by ``zoom`` around the object in its mask (bilinear; masks thresholded back to {0, 1}).
+    Below 1 the frame shrinks onto a black canvas of its own size, the canvas labelled background.
 
     Args:
         images: (T, C, H, W) float frames; masks: (T, H, W) float object masks in [0, 1].
@@ -52,7 +54,11 @@ def zoom_on_object(
             out_masks.append(mask)
             continue
         top, left, ch, cw = window
-        crop = torch.cat([image, mask[None]])[:, top : top + ch, left : left + cw]
+        h, w = size
+        pad = (max(0, -left), max(0, left + cw - w), max(0, -top), max(0, top + ch - h))
+        stacked = F.pad(torch.cat([image, mask[None]]), pad)
+        top, left = top + pad[2], left + pad[0]
+        crop = stacked[:, top : top + ch, left : left + cw]
         big = F.interpolate(crop[None], size=size, mode="bilinear", align_corners=False)[0]
         out_images.append(big[:-1])
         out_masks.append((big[-1] > 0.5).to(mask.dtype))

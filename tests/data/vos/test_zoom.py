@@ -1,5 +1,6 @@
 """zoom_on_object: a window of 1/zoom of the frame around the object's centroid, resized back (against OpenCV's
-bilinear resize of the same window); SequenceTrainingSamples' zoomed test frames."""
+bilinear resize of the same window, and OpenCV's black border below zoom 1); SequenceTrainingSamples' zoomed test
+frames."""
 
 import cv2
 import numpy as np
@@ -23,6 +24,24 @@ def test_window_is_centred_on_the_object_and_kept_inside_the_frame() -> None:
     assert zoom_window(_block(24, 32, 0, 0, 2), 2.0) == (0, 0, 12, 16)  # pushed inside at the corner
     assert zoom_window(_block(24, 32, 20, 28, 4), 1.5) == (8, 11, 16, 21)
     assert zoom_window(torch.zeros(24, 32), 2.0) is None
+    # zoom < 1: the window holds the whole frame, centred on the object where it can be
+    assert zoom_window(_block(24, 32, 10, 14, 4), 0.5) == (12 - 24, 16 - 32, 48, 64)
+    assert zoom_window(_block(24, 32, 0, 0, 2), 0.75) == (-8, -11, 32, 43)  # pushed to hold the frame
+
+
+def test_zoom_out_shrinks_the_frame_onto_a_black_canvas_as_opencv_does() -> None:
+    gen = torch.Generator().manual_seed(1)
+    images = torch.rand(1, 3, 24, 32, generator=gen)
+    masks = _block(24, 32, 2, 3, 8)[None]
+    out, out_masks, zoomed = zoom_on_object(images, masks, 0.75)
+    assert zoomed == [True]
+    top, left, ch, cw = zoom_window(masks[0], 0.75)
+    stacked = torch.cat([images[0], masks]).permute(1, 2, 0).numpy()
+    canvas = cv2.copyMakeBorder(stacked, -top, top + ch - 24, -left, left + cw - 32, cv2.BORDER_CONSTANT, value=0)
+    expected = cv2.resize(canvas, (32, 24), interpolation=cv2.INTER_LINEAR)
+    np.testing.assert_allclose(out[0].permute(1, 2, 0).numpy(), expected[..., :3], atol=1e-5)
+    np.testing.assert_array_equal(out_masks[0].numpy(), (expected[..., 3] > 0.5).astype(np.float32))
+    assert out_masks[0].sum() == pytest.approx(64 * 0.75**2, abs=8)  # area x zoom^2, give or take the edge
 
 
 def test_zoom_matches_opencv_on_the_window_and_magnifies_the_object() -> None:
@@ -41,14 +60,14 @@ def test_zoom_matches_opencv_on_the_window_and_magnifies_the_object() -> None:
 
 
 def test_zoom_refuses_bad_input() -> None:
-    with pytest.raises(InputError, match="at least 1"):
-        zoom_on_object(torch.rand(1, 3, 8, 8), torch.ones(1, 8, 8), 0.5)
+    with pytest.raises(InputError, match="positive"):
+        zoom_on_object(torch.rand(1, 3, 8, 8), torch.ones(1, 8, 8), 0.0)
     with pytest.raises(InputError, match="masks"):
         zoom_on_object(torch.rand(1, 3, 8, 8), torch.ones(1, 8, 9), 2.0)
     with pytest.raises(InputError, match="zoom_prob"):
         SequenceTrainingSamples([FakeSequence()], 1, zoom_prob=0.5)  # no zooms
     with pytest.raises(InputError, match="zoom_prob"):
-        SequenceTrainingSamples([FakeSequence()], 1, zooms=[0.8], zoom_prob=0.5)
+        SequenceTrainingSamples([FakeSequence()], 1, zooms=[-0.5], zoom_prob=0.5)
 
 
 def test_zoomed_samples_keep_the_reference_and_magnify_the_test_frames() -> None:
