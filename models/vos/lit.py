@@ -64,10 +64,9 @@ class FRTMSegmentation(VOSEvaluation):
             optimizer, epoch or scheduler state; a resumed ``--ckpt_path`` still wins.
         cache_training: keep every fitted target model (per sequence, object, reference frame and mirroring) and
             every test frame's backbone features (float16; per mirroring and ``test_zoom``) in memory and reuse
-            them; needs a frozen backbone
-            and samples with ``sample_key`` / ``test_index`` (``DavisVOSDataModule`` without crop; its
-            ``reference_every`` bounds the fits). Each reference then keeps one first-frame augmentation.
-            Memory: about 0.6 MB per 240p frame and mirroring with EfficientNet-Lite0.
+            them; needs a frozen backbone and samples with ``sample_key`` / ``test_index`` (``DavisVOSDataModule``
+            without crop; its ``reference_every`` bounds the fits). Each reference then keeps one first-frame
+            augmentation. Memory: about 0.6 MB per 240p frame and mirroring with EfficientNet-Lite0.
     """
 
     def __init__(
