@@ -50,7 +50,7 @@ class FRTMSegmentation(VOSEvaluation):
             training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
         loss, pos_weight, iou_weight, boundary_weight: decoder loss (``models.vos.losses.segmentation_loss``;
             FRTM: plain ``bce``; ``bce_iou`` adds a soft-IoU term against the collapse to background on small
-            objects; ``boundary_weight`` raises the BCE near the contours).
+            objects, ``bce_lovasz`` the Lovasz hinge instead; ``boundary_weight`` raises the BCE near the contours).
         target_loss_weight: weight of an auxiliary loss on the target model itself (mean squared error of its
             bilinearly upsampled test-frame scores against the test masks, the data term of eq. 5.2; FRTM: 0).
             It gives a backbone trained from scratch a direct signal to make the target model discriminative.

@@ -16,7 +16,7 @@ import torch.nn.functional as F
 
 from core.errors import InputError
 
-LOSSES = ("bce", "bce_iou", "lovasz")
+LOSSES = ("bce", "bce_iou", "bce_lovasz", "lovasz")
 
 
 def soft_iou_loss(
@@ -88,8 +88,8 @@ def segmentation_loss(
 
     Args:
         kind: ``bce`` (mean binary cross-entropy, foreground pixels weighted by ``pos_weight``), ``bce_iou``
-            (that plus ``iou_weight`` times ``soft_iou_loss``) or ``lovasz`` (``lovasz_hinge``; the weights
-            do not apply).
+            (that plus ``iou_weight`` times ``soft_iou_loss``), ``bce_lovasz`` (the BCE plus ``iou_weight`` times
+            ``lovasz_hinge``) or ``lovasz`` (``lovasz_hinge`` alone; the weights do not apply).
         boundary_weight: extra BCE weight of the pixels in :func:`boundary_band` (``boundary_radius`` px); the
             per-pixel weight is ``1 + boundary_weight`` there and 1 elsewhere.
         mask: (N, H, W) bool, the pixels that count (None: all); the BCE is then the mean over them.
@@ -113,4 +113,6 @@ def segmentation_loss(
         loss = (bce * keep).sum() / keep.sum().clamp_min(1)
     if kind == "bce_iou":
         loss = loss + iou_weight * soft_iou_loss(logits, target, mask=mask)
+    elif kind == "bce_lovasz":
+        loss = loss + iou_weight * lovasz_hinge(logits, target, mask)
     return loss

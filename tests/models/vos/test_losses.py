@@ -103,6 +103,18 @@ def test_lovasz_hinge_equals_the_integral_of_the_jaccard_set_function(masked: bo
     assert float(segmentation_loss(logits, target, "lovasz", mask=keep if masked else None)) == pytest.approx(want)
 
 
+def test_bce_lovasz_is_the_weighted_bce_plus_the_lovasz_integral() -> None:
+    gen = torch.Generator().manual_seed(4)
+    logits = 2 * torch.randn(3, 4, 6, generator=gen, dtype=torch.float64)
+    target = (torch.rand(3, 4, 6, generator=gen) > 0.6).double()
+    target[1] = 0  # an empty mask
+    got = float(segmentation_loss(logits, target, "bce_lovasz", 2.0, iou_weight=0.5, boundary_weight=3.0))
+    ones = torch.ones(3, 24, dtype=torch.bool).tolist()
+    lovasz = _lovasz_integral(logits.flatten(1).tolist(), target.flatten(1).tolist(), ones)
+    want = _reference(logits, target, 2.0, False, 3.0) + 0.5 * lovasz
+    assert got == pytest.approx(want, rel=1e-12)
+
+
 def test_lovasz_hinge_is_zero_for_confident_correct_logits_and_masked_bce_is_a_masked_mean() -> None:
     target = torch.zeros(1, 4, 4)
     target[0, 1:3, 1:3] = 1
