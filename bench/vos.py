@@ -46,7 +46,7 @@ from data.vos.davis import davis_sequences, load_davis_videos
 from models.builders import davos_system, frtm_system
 from models.vos.inference import checkpoint_test_videos, synthetic_test_settings
 from models.vos.lit import FRTMSegmentation
-from models.vos.metrics import evaluate_sequence, summarize
+from models.vos.metrics import evaluate_sequence, jaccard, summarize
 from models.vos.target_features import FEATURE_NORMS
 from models.vos.tracker import COMPONENTS
 
@@ -62,13 +62,31 @@ def onnx_tracker(bundle: str) -> Callable[[], object]:
     return lambda: OnnxFRTMTracker(bundle, threads=torch.get_num_threads())
 
 
+def frame_curves(pred: torch.Tensor, labels: torch.Tensor) -> dict[str, dict[str, list[float]]]:
+    """Per object of a sequence, per frame: J and the predicted and true object areas as fractions of the frame.
+
+    Args:
+        pred, labels: ``(T, H, W)`` label maps (``labels`` 255 = void, ignored by J).
+    Returns:
+        ``{object id: {"j": [T], "area": [T], "gt_area": [T]}}``; J is 1 where both masks are empty.
+    """
+    void = labels == 255
+    curves = {}
+    for obj in range(1, int(torch.where(void, 0, labels)[0].max()) + 1):
+        p, g = pred == obj, labels == obj
+        curves[str(obj)] = {"j": jaccard(p, g, void).tolist(), "area": p.flatten(1).double().mean(1).tolist(),
+                            "gt_area": g.flatten(1).double().mean(1).tolist()}
+    return curves
+
+
 def run_method(make_tracker: Callable[[], object] | None, videos: list[tuple[str, torch.Tensor, torch.Tensor]],
-               label: str = "") -> dict:
+               label: str = "", per_frame: bool = False) -> dict:
     """Segment ``videos`` (name, frames uint8, labels) with the trackers of ``make_tracker`` (None: the first mask
-    copied); J&F statistics, FPS and ms/frame. A progress bar named ``label`` goes to a terminal's stderr."""
+    copied); J&F statistics, FPS and ms/frame; ``per_frame`` adds each object's ``frame_curves`` under its
+    per-sequence entry (key ``frames``). A progress bar named ``label`` goes to a terminal's stderr."""
     from tqdm import tqdm
 
-    per_seq, frames_total, seconds = {}, 0, 0.0
+    per_seq, curves, frames_total, seconds = {}, {}, 0, 0.0
     timings = dict.fromkeys(COMPONENTS, 0.0)
     for name, frames, labels in tqdm(videos, desc=label or "videos", unit="video", disable=None, leave=False):
         start = time.perf_counter()
@@ -83,12 +101,17 @@ def run_method(make_tracker: Callable[[], object] | None, videos: list[tuple[str
         seconds += time.perf_counter() - start
         frames_total += frames.shape[0]
         per_seq[name] = evaluate_sequence(pred, labels)
+        if per_frame:
+            curves[name] = frame_curves(pred, labels)
     glob = summarize(per_seq)
     out = {"jf": glob["J&F-Mean"], "j": glob["J-Mean"], "f": glob["F-Mean"], "fps": frames_total / seconds}
     if make_tracker is not None:
         out["ms_per_frame"] = {k: v / frames_total for k, v in timings.items()}
     out["per_sequence"] = {name: {str(o): {"jf": s["J&F-Mean"], "j": s["J-Mean"], "f": s["F-Mean"]}
                                   for o, s in objects.items()} for name, objects in per_seq.items()}
+    for name, objects in curves.items():
+        for o, curve in objects.items():
+            out["per_sequence"][name][o]["frames"] = curve
     return out
 
 
@@ -239,7 +262,7 @@ def run(args: argparse.Namespace) -> dict:
     if args.davis or args.synthetic or args.lookalike or not args.speed:
         result["dataset"], videos = load_videos(args)
         for method, make_tracker in factories.items():
-            result["methods"][method] = run_method(make_tracker, videos, method)
+            result["methods"][method] = run_method(make_tracker, videos, method, args.per_frame)
     if args.speed:
         models = {name: f for name, f in factories.items() if f is not None and name != "target_model_only"}
         models.update({Path(c).stem: frtm_system(config=c).make_tracker for c in args.speed_config or []})
@@ -329,6 +352,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--onnx", nargs="+", action="extend", metavar="BUNDLE",
                    help="also run these VOS bundles in the deployment runtime (methods onnx:<folder>)")
     p.add_argument("--threads", type=int, help="torch intra-op threads (1 is much faster on an oversubscribed CPU)")
+    p.add_argument("--per-frame", action="store_true",
+                   help="also give each object's per-frame J and predicted / true area (fraction of the frame)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a J&F-vs-FPS PNG")
     return p.parse_args(argv)

@@ -46,6 +46,9 @@ class FRTMSegmentation(VOSEvaluation):
         feature_norm, feature_scale: ``none``, ``fixed`` (divided by ``feature_scale``) or ``instance_l2``: scaling
             of the target model's features (``models.vos.target_features.normalize_features``), in training and in
             the tracker.
+        feature_dropout: in training, the probability with which each channel of the backbone features the decoder
+            reads is zeroed (``F.dropout2d``, the rest scaled by ``1 / (1 - p)``; the target model's input is
+            untouched): a regulariser for a decoder trained on few sequences whose cached features repeat.
         train_channels, train_num_aug, train_reg, train_schedule, train_optimizer: target model fitted in
             training (32, 15, (1e-5, 1e-4), (5, 10, 10, 10, 10), ``gauss_newton``).
         loss, pos_weight, iou_weight, boundary_weight: decoder loss (``models.vos.losses.segmentation_loss``;
@@ -79,6 +82,7 @@ class FRTMSegmentation(VOSEvaluation):
         feature_layer: str = "layer3",
         feature_norm: str = "none",
         feature_scale: float = 1.0,
+        feature_dropout: float = 0.0,
         train_channels: int = 32,
         train_num_aug: int = 15,
         train_reg: tuple[float, float] = (1e-5, 1e-4),
@@ -103,6 +107,8 @@ class FRTMSegmentation(VOSEvaluation):
         self.save_hyperparameters()
         if cache_training and train_backbone:
             raise InputError("cache_training needs a frozen backbone (train_backbone: false)")
+        if not 0 <= feature_dropout < 1:
+            raise InputError(f"feature_dropout must lie in [0, 1), got {feature_dropout}")
         self._fitted = KeyedMemo()
         self._test_features = KeyedMemo(torch.float16)
         self.backbone = build_backbone(backbone, weights, frozen=not train_backbone)
@@ -192,6 +198,8 @@ class FRTMSegmentation(VOSEvaluation):
             feats = self.backbone(test.flatten(0, 1))
         x = self.target_input(feats)
         score = apply_filter(project(x.view(b, t, *x.shape[1:]), wp), wf)
+        if h.feature_dropout > 0 and self.training:
+            feats = {k: F.dropout2d(v, h.feature_dropout) for k, v in feats.items()}
         logits = self.decoder(score.flatten(0, 1)[:, None], feats, tuple(test.shape[-2:]))
         masks = batch["test_masks"].flatten(0, 1)
         loss = segmentation_loss(logits[:, 0], masks, h.loss, h.pos_weight, h.iou_weight, h.boundary_weight)

@@ -93,3 +93,23 @@ def test_a_bundle_runs_as_a_method(vos_setup) -> None:
     row = result["methods"][f"onnx:{vos_setup['bundle'].name}"]
     assert set(result["methods"]) == {"first_frame_copy", f"onnx:{vos_setup['bundle'].name}"}
     assert 0 <= row["jf"] <= 1 and row["fps"] > 0 and row["ms_per_frame"]["frame"] > 0
+
+
+def test_per_frame_curves_match_a_per_frame_count() -> None:
+    videos = synthetic_videos("test", 1, n_frames=5, height=48, width=64, n_objects=2)
+    name, _, labels = videos[0]
+    labels = labels.clone()
+    labels[2, :3] = 255  # void rows, left out of J
+    out = run_method(None, [(name, videos[0][1], labels)], per_frame=True)
+    copy = labels[0].numpy()
+    for obj in ("1", "2"):
+        curve = out["per_sequence"][name][obj]["frames"]
+        assert set(out["per_sequence"][name][obj]) == {"jf", "j", "f", "frames"}
+        for t, truth in enumerate(labels.numpy()):
+            keep = truth != 255
+            p, g = (copy == int(obj)) & keep, (truth == int(obj)) & keep
+            union = (p | g).sum()
+            assert curve["j"][t] == pytest.approx((p & g).sum() / union if union else 1.0, abs=1e-12)
+            assert curve["area"][t] == pytest.approx((copy == int(obj)).mean(), abs=1e-12)
+            assert curve["gt_area"][t] == pytest.approx((truth == int(obj)).mean(), abs=1e-12)
+    assert "frames" not in run_method(None, videos)["per_sequence"][name]["1"]

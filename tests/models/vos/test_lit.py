@@ -95,3 +95,27 @@ def test_frozen_pretrained_backbone_trains_only_the_decoder() -> None:
     frames = (batch["test_images"][0] * 255).to(torch.uint8)
     labels = list(tracker.segment(frames, {0: batch["test_masks"][0, 0].long()}))
     assert tracker.settings.feature_norm == "instance_l2" and len(labels) == 2 and labels[0].shape == (48, 64)
+
+
+def test_feature_dropout_zeroes_whole_decoder_channels_in_training_only() -> None:
+    ds = SyntheticTrainingSamples(2, n_test_frames=2, max_gap=3, height=48, width=64)
+    batch = torch.utils.data.default_collate([ds[0], ds[1]])
+    torch.manual_seed(0)
+    model = FRTMSegmentation(mdim=8, train_channels=8, train_num_aug=2, train_schedule=(2,), feature_dropout=0.5)
+    model.log = lambda *a, **k: None
+    seen = []
+    decode = model.decoder.forward
+    model.decoder.forward = lambda score, feats, size: seen.append(feats) or decode(score, feats, size)
+    with torch.no_grad():
+        reference = model.backbone(batch["test_images"].flatten(0, 1))
+        model.train().training_step(batch, 0)
+        model.eval().training_step(batch, 0)
+    dropped, kept = seen
+    for name, x in reference.items():
+        zero = dropped[name].flatten(2).abs().amax(-1) == 0  # (N, C) channels the dropout removed
+        expected = torch.where(zero[..., None, None], torch.zeros_like(x), 2 * x)  # the rest scaled by 1 / (1 - p)
+        torch.testing.assert_close(dropped[name], expected)
+        assert 0.3 < zero.float().mean() < 0.7
+        torch.testing.assert_close(kept[name], x)  # not in eval mode
+    with pytest.raises(InputError, match="feature_dropout"):
+        FRTMSegmentation(mdim=8, feature_dropout=1.0)
