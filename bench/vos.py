@@ -304,6 +304,41 @@ def plot(result: dict, path: str) -> None:
     fig.savefig(path, dpi=120)
 
 
+def plot_frames(result: dict, path: str) -> None:
+    """Per-frame curves of a ``--per-frame`` run: one row per sequence and object, J on the left, predicted areas
+    (and the true area, dashed) on the right, one colour per method."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves: dict[tuple[str, str], dict[str, dict]] = {}
+    for method, m in result["methods"].items():
+        for name, objects in m["per_sequence"].items():
+            for obj, stats in objects.items():
+                curves.setdefault((name, obj), {})[method] = stats["frames"]
+    if not curves:
+        raise InputError("--plot-frames needs videos to segment (--davis, --synthetic or --lookalike)")
+    fig, axes = plt.subplots(len(curves), 2, figsize=(9, 2.4 * len(curves)), squeeze=False)
+    for (j_ax, area_ax), ((name, obj), methods) in zip(axes, curves.items(), strict=True):
+        for i, (method, frames) in enumerate(methods.items()):
+            colour = f"C{i}"
+            j_ax.plot(frames["j"], color=colour, label=method)
+            area_ax.plot(frames["area"], color=colour)
+        area_ax.plot(frames["gt_area"], "k--", label="ground truth")
+        j_ax.set_ylim(0, 1.02)
+        j_ax.set_ylabel(f"{name} #{obj}\nJ")
+        area_ax.set_ylabel("area (frame fraction)")
+    axes[0, 0].legend(fontsize="small")
+    axes[0, 1].legend(fontsize="small")
+    axes[-1, 0].set_xlabel("frame")
+    axes[-1, 1].set_xlabel("frame")
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--ckpt", help="FRTMSegmentation checkpoint (default: untrained networks)")
@@ -354,9 +389,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--threads", type=int, help="torch intra-op threads (1 is much faster on an oversubscribed CPU)")
     p.add_argument("--per-frame", action="store_true",
                    help="also give each object's per-frame J and predicted / true area (fraction of the frame)")
+    p.add_argument("--plot-frames", metavar="PNG",
+                   help="write the per-frame J and area curves of every sequence as a PNG (implies --per-frame)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", help="write a J&F-vs-FPS PNG")
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    args.per_frame = args.per_frame or bool(args.plot_frames)
+    return args
 
 
 def plot_masks(factories: dict[str, Callable | None], video: tuple[str, torch.Tensor, torch.Tensor],
@@ -449,6 +488,8 @@ def main(argv: list[str] | None = None) -> int:
         set_cpu_threads(args.threads)
     try:
         result = run(args)
+        if args.plot_frames:
+            plot_frames(result, args.plot_frames)
     except InputError as err:
         print(f"bench/vos.py: error: {err}", file=sys.stderr)
         return 2

@@ -1,8 +1,8 @@
 """A search region for mask trackers: an object is looked for near where it was (the DCF trackers' search area,
 thesis ch. 3 and 5), so that mask components far from the object's previous mask (a similar-looking distractor
-elsewhere in the frame) are dropped before they enter the object's memory; and the memory may learn from each
-object's main component only. Shared by the PyTorch trackers and the deployment runtime. Torch-free (numpy and
-OpenCV).
+elsewhere in the frame) are dropped before they enter the object's memory; mask components that the target model's
+score does not support can be dropped as well; and the memory may learn from each object's main component only.
+Shared by the PyTorch trackers and the deployment runtime. Torch-free (numpy and OpenCV).
 """
 
 from __future__ import annotations
@@ -61,6 +61,40 @@ def outside_search_region(labels: np.ndarray, previous: np.ndarray, ids: list[in
         near = np.unique(components[(distance <= radius * math.sqrt(area)) & (components > 0)])
         if near.size:
             drop[n] = (components > 0) & ~np.isin(components, near)
+    return drop
+
+
+def unsupported_components(labels: np.ndarray, score: np.ndarray, ids: list[int], threshold: float = 0.5) -> np.ndarray:
+    """Pixels of each object's mask that lie in connected components its target model does not support.
+
+    Object ``i``'s target-model score ``score[i]`` is upsampled bilinearly to the label map's size (half-pixel
+    centres, as ``F.interpolate(align_corners=False)``); its mask ``labels == ids[i]`` is split into 8-connected
+    components, and a component is *supported* when the upsampled score exceeds ``threshold`` on at least one of
+    its pixels. The decoder refines what the target model detects; a component without support is something
+    the target model does not see (a look-alike, or a guess while the object is hidden) and is returned.
+
+    Args:
+        labels: (H, W) integer label map of the current frame.
+        score: (N, h, w) float target-model scores of the N objects (labels 1 on the object, 0 elsewhere).
+        ids: the N object ids.
+        threshold: the score above which a pixel supports a component (0.5, between the labels 0 and 1).
+
+    Returns:
+        (N, H, W) bool, True where object ``ids[i]``'s pixels are dropped.
+    """
+    labels, score = np.asarray(labels), np.asarray(score, np.float32)
+    if labels.ndim != 2 or score.ndim != 3 or score.shape[0] != len(ids):
+        raise InputError(f"score support needs an (H, W) label map and (N = {len(ids)}, h, w) scores, got "
+                         f"{labels.shape} and {score.shape}")
+    h, w = labels.shape
+    drop = np.zeros((len(ids), h, w), bool)
+    for n, obj in enumerate(ids):  # one labelling per object, not per pixel
+        count, components = cv2.connectedComponents((labels == obj).astype(np.uint8), connectivity=8)
+        if count <= 1:
+            continue
+        support = cv2.resize(score[n], (w, h), interpolation=cv2.INTER_LINEAR) > threshold
+        supported = np.unique(components[support & (components > 0)])
+        drop[n] = (components > 0) & ~np.isin(components, supported)
     return drop
 
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from core.errors import InputError
 from core.first_frame_augment import first_frame_augment
-from core.search_region import DROPPED_LOGIT, main_component, outside_search_region
+from core.search_region import DROPPED_LOGIT, main_component, outside_search_region, unsupported_components
 from runtime.area import area_resize
 from runtime.bundle import Bundle
 from runtime.video_loop import NumpyVideoLoop, video_command
@@ -44,6 +44,19 @@ def merge_objects(logits: np.ndarray, ids: list[int]) -> tuple[np.ndarray, np.nd
     labels = np.array([0, *ids], np.int64)[win]
     won = win[None] == np.arange(1, len(ids) + 1)[:, None, None]
     return labels, (probs[1:] * won).astype(np.float32)
+
+
+def target_score(z: np.ndarray, wf: np.ndarray) -> np.ndarray:
+    """Target-model scores W_f * z (``models.vos.target_model.apply_filter``: zero padding, same size) of projected
+    features (N, C, h, w) and filters (N, C, k, k) -> (N, h, w)."""
+    n, _, h, w = z.shape
+    k = wf.shape[-1]
+    padded = np.pad(z, ((0, 0), (0, 0), (k // 2, k // 2), (k // 2, k // 2)))
+    out = np.zeros((n, h, w), np.float32)
+    for dy in range(k):  # k * k taps of the small filter, each one product over all pixels
+        for dx in range(k):
+            out += np.einsum("nc,nchw->nhw", wf[:, :, dy, dx], padded[:, :, dy : dy + h, dx : dx + w])
+    return out
 
 
 def hinge_pixel_weights(labels: np.ndarray, fg_target: float, min_pixels: int) -> np.ndarray:
@@ -155,7 +168,7 @@ class OnnxFRTMTracker(NumpyVideoLoop):
 
     def step(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Labels (H, W), merged soft masks (N, H, W) and projected features (N, C, h, w) of a frame (3, H, W); the
-        search region as ``FRTMLoop.step``."""
+        search region and the score support as ``FRTMLoop.step``."""
         start = time.perf_counter()
         logits, z = self.graphs["frame"](image[None], self.wp, self.wf)
         self._tick("frame", start)
@@ -164,7 +177,13 @@ class OnnxFRTMTracker(NumpyVideoLoop):
         if radius > 0 and self.previous_labels is not None:
             drop = outside_search_region(labels, self.previous_labels, self.ids, radius)
             if drop.any():
-                labels, soft = merge_objects(np.where(drop, np.float32(DROPPED_LOGIT), logits), self.ids)
+                logits = np.where(drop, np.float32(DROPPED_LOGIT), logits)
+                labels, soft = merge_objects(logits, self.ids)
+        if self.settings.get("score_support", False):
+            drop = unsupported_components(labels, target_score(z, self.wf), self.ids)
+            if drop.any():
+                logits = np.where(drop, np.float32(DROPPED_LOGIT), logits)
+                labels, soft = merge_objects(logits, self.ids)
         return labels, soft, z
 
     def update(self, soft: np.ndarray, z: np.ndarray) -> None:

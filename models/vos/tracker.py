@@ -21,7 +21,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from core.errors import InputError
-from core.search_region import DROPPED_LOGIT, main_component, outside_search_region
+from core.search_region import DROPPED_LOGIT, main_component, outside_search_region, unsupported_components
 from models.backbones import Backbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder, flip_averaged_logits
@@ -151,8 +151,9 @@ class FRTMLoop(VideoLoop):
         self._toc("init", start, device)
 
     def step(self, image: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Segment one frame; with ``search_radius`` the mask components far from each object's previous mask
-        are given to the background (``core.search_region``) before the masks go to the memory.
+        """Segment one frame; with ``search_radius`` the mask components far from each object's previous mask,
+        and with ``score_support`` those its target model does not support, are given to the background
+        (``core.search_region``) before the masks go to the memory.
 
         Args:
             image: (3, H, W) RGB in [0, 1].
@@ -169,6 +170,12 @@ class FRTMLoop(VideoLoop):
         if self.settings.search_radius > 0 and self.previous_labels is not None:
             drop = outside_search_region(labels.cpu().numpy(), self.previous_labels.cpu().numpy(), self.ids,
                                          self.settings.search_radius)
+            if drop.any():
+                logits = logits.masked_fill(torch.from_numpy(drop).to(logits.device), DROPPED_LOGIT)
+                labels, soft = merge_objects(logits, ids)
+        if self.settings.score_support:
+            score = apply_filter(z[:, None], self.wf)[:, 0]  # (N, h, w), as in segment_frame
+            drop = unsupported_components(labels.cpu().numpy(), score.float().cpu().numpy(), self.ids)
             if drop.any():
                 logits = logits.masked_fill(torch.from_numpy(drop).to(logits.device), DROPPED_LOGIT)
                 labels, soft = merge_objects(logits, ids)

@@ -47,6 +47,9 @@ class FRTMSettings(SettingsMixin):
             augmentation, ``models.vos.decoder.flip_averaged_logits``; twice the backbone and decoder work).
         search_radius: an object's mask keeps only its connected components within ``search_radius`` x sqrt(area)
             px of its previous mask of that area (all when none is that near; ``core.search_region``); 0: off.
+        score_support: an object's mask keeps only the connected components on which its target model's score
+            (upsampled bilinearly) exceeds 0.5 somewhere (``core.search_region.unsupported_components``), after
+            the search region: the decoder refines the target model's detections but adds none of its own.
         memory_main_component: the memory learns from each object's largest connected component (soft mask above
             0.5) only, the rest of its soft mask set to 0 there (``core.search_region.main_component``).
         use_decoder: False segments by thresholding the upsampled target-model score (``target_model_only``).
@@ -77,6 +80,7 @@ class FRTMSettings(SettingsMixin):
     flip_test: bool = False
     search_radius: float = 0.0
     memory_main_component: bool = False
+    score_support: bool = False
     use_decoder: bool = True
     seed: int = 0
     process_height: int = 0
@@ -87,7 +91,7 @@ class FRTMSettings(SettingsMixin):
         check_feature_norm(self.feature_norm, self.feature_scale)
         check_search_radius(self.search_radius)
         # a string "false" would read as on
-        for name in ("pixel_weighting", "flip_test", "memory_main_component", "use_decoder"):
+        for name in ("pixel_weighting", "flip_test", "memory_main_component", "score_support", "use_decoder"):
             if not isinstance(getattr(self, name), bool):
                 raise InputError(f"tracker setting {name} must be true or false, got {getattr(self, name)!r}")
         check_process_height(self.process_height)

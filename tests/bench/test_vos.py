@@ -113,3 +113,18 @@ def test_per_frame_curves_match_a_per_frame_count() -> None:
             assert curve["area"][t] == pytest.approx((copy == int(obj)).mean(), abs=1e-12)
             assert curve["gt_area"][t] == pytest.approx((truth == int(obj)).mean(), abs=1e-12)
     assert "frames" not in run_method(None, videos)["per_sequence"][name]["1"]
+
+
+def test_plot_frames_writes_the_curves_and_implies_per_frame(tmp_path, capsys) -> None:
+    import json
+
+    from bench.vos import main
+
+    png = tmp_path / "frames.png"
+    small = ["--videos", "1", "--max-frames", "4", "--height", "48", "--width", "64", "--methods", "first_frame_copy"]
+    assert main([*small, "--plot-frames", str(png), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    obj = next(iter(result["methods"]["first_frame_copy"]["per_sequence"].values()))["1"]
+    assert len(obj["frames"]["j"]) == 4 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["--speed", "--methods", "first_frame_copy", "--plot-frames", str(tmp_path / "none.png")]) == 2
+    assert "needs videos" in capsys.readouterr().err and not (tmp_path / "none.png").exists()

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.search_region import check_search_radius, main_component, outside_search_region
+from core.search_region import check_search_radius, main_component, outside_search_region, unsupported_components
 
 
 def flood_components(mask: np.ndarray) -> list[set[tuple[int, int]]]:
@@ -115,3 +115,43 @@ def test_bad_inputs_are_named() -> None:
             check_search_radius(radius)
     with pytest.raises(InputError, match="positive radius"):
         outside_search_region(labels, labels, [1], 0.0)
+
+
+def bilinear_up(score: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Half-pixel-centre bilinear upsampling of (h, w) to ``size``, pixel by pixel (edge samples repeated)."""
+    h, w = score.shape
+    out = np.zeros(size)
+    for r in range(size[0]):
+        for c in range(size[1]):
+            y = min(max((r + 0.5) * h / size[0] - 0.5, 0), h - 1)
+            x = min(max((c + 0.5) * w / size[1] - 0.5, 0), w - 1)
+            y0, x0 = int(y), int(x)
+            y1, x1 = min(y0 + 1, h - 1), min(x0 + 1, w - 1)
+            fy, fx = y - y0, x - x0
+            top = (1 - fx) * score[y0, x0] + fx * score[y0, x1]
+            bottom = (1 - fx) * score[y1, x0] + fx * score[y1, x1]
+            out[r, c] = (1 - fy) * top + fy * bottom
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_unsupported_components_match_flood_fill_and_per_pixel_interpolation(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    ids = [2, 5]
+    labels = random_blobs(rng, (40, 56), ids, 4)
+    score = rng.random((2, 10, 14)) ** 2  # mostly low: some components lack support
+    expected = np.zeros((2, 40, 56), bool)
+    for n, obj in enumerate(ids):
+        support = bilinear_up(score[n], (40, 56)) > 0.5
+        for component in flood_components(labels == obj):
+            if not any(support[pixel] for pixel in component):
+                for pixel in component:
+                    expected[(n, *pixel)] = True
+    drop = unsupported_components(labels, score, ids)
+    assert np.array_equal(drop, expected)
+    assert drop.any() and ((labels[None] == np.array(ids)[:, None, None]) & ~drop).any()  # both cases drawn
+
+
+def test_unsupported_components_bad_inputs_are_named() -> None:
+    with pytest.raises(InputError, match="score support"):
+        unsupported_components(np.zeros((4, 5), np.int64), np.zeros((1, 2, 2)), [1, 2])

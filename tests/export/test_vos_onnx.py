@@ -108,6 +108,32 @@ def test_search_region_parity(vos_setup) -> None:
 
 
 @pytest.mark.slow
+def test_score_support_parity(vos_setup) -> None:
+    """The runtime drops the mask components without target-model support as the PyTorch tracker does, after the
+    search region: a static video whose first frame the target model was fitted on, crafted decoder logits with the
+    object, a blob in the search region's reach and one beyond it; both trackers keep the object (its score is
+    high) and give both blobs to the background (the far one by the search region, the near one by the support)."""
+    base = vos_setup["tracker"]
+    settings = {"search_radius": 1.0, "score_support": True}
+    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, **settings)).eval()
+    runtime = OnnxFRTMTracker(vos_setup["bundle"])
+    runtime.settings = {**runtime.settings, **settings}
+    frames = torch.rand(1, 3, 64, 96, generator=torch.Generator().manual_seed(4)).expand(3, -1, -1, -1)
+    first = torch.zeros(64, 96, dtype=torch.long)
+    first[16:32, 16:40] = 1
+    logits = torch.full((1, 64, 96), -5.0)
+    logits[0, 16:32, 16:40] = logits[0, 44:60, 64:88] = logits[0, 16:32, 52:58] = 5.0
+    segment_frame, frame_graph = tracker.segment_frame, runtime.graphs["frame"]
+    tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
+    runtime.graphs["frame"] = lambda *args: (logits.numpy(), frame_graph(*args)[1])
+    with torch.no_grad():
+        ours = [p.numpy() for p in tracker.segment(frames, {0: first})]
+    theirs = list(runtime.segment(frames.numpy(), {0: first.numpy()}))
+    for a, b in zip(ours[1:], theirs[1:], strict=True):
+        assert np.array_equal(a, first.numpy()) and np.array_equal(b, first.numpy())
+
+
+@pytest.mark.slow
 def test_mask_parity(vos_setup) -> None:
     frames, labels = synthetic_video(5, n_frames=6, height=64, width=96, n_objects=2)
     videos = [("v", (frames * 255).round().byte(), labels)]

@@ -1,6 +1,6 @@
 """The runtime's FRTM tracker: its command, run without torch, against the PyTorch tracker on synthetic videos
-(mask IoU >= 0.99 per frame and object), the numpy soft aggregation and pixel weights against PyTorch's, objects
-appearing later, bad frames."""
+(mask IoU >= 0.99 per frame and object), the numpy soft aggregation, pixel weights and target-model scores against
+PyTorch's, objects appearing later, bad frames."""
 
 import cv2
 import numpy as np
@@ -11,8 +11,9 @@ from core.errors import InputError
 from data.vos.io import read_frame, write_mask
 from data.vos.synthetic import synthetic_video
 from models.vos.merge import merge_objects as torch_merge
+from models.vos.target_model import apply_filter
 from models.vos.target_model import hinge_pixel_weights as torch_hinge
-from runtime.vos import OnnxFRTMTracker, hinge_pixel_weights, merge_objects
+from runtime.vos import OnnxFRTMTracker, hinge_pixel_weights, merge_objects, target_score
 from runtime.vos_io import read_mask
 
 
@@ -69,3 +70,12 @@ def test_objects_appearing_later_and_bad_frames(vos_setup) -> None:
         list(runtime.segment([np.zeros((3, 8, 96), np.uint8)], {0: np.ones((8, 96), np.int64)}))
     with pytest.raises(InputError, match="first-frame mask is empty"):
         list(runtime.segment(frames.numpy()[:1], {0: np.zeros((64, 96), np.int64)}))
+
+
+def test_target_score_is_pytorchs_filter() -> None:
+    g = torch.Generator().manual_seed(3)
+    z, wf = torch.randn(2, 6, 7, 9, generator=g, dtype=torch.float64), torch.randn(2, 6, 3, 3, generator=g,
+                                                                                  dtype=torch.float64)
+    ref = apply_filter(z[:, None], wf)[:, 0]
+    np.testing.assert_allclose(target_score(z.float().numpy(), wf.float().numpy()), ref.numpy(), rtol=1e-5,
+                               atol=1e-5)

@@ -183,3 +183,33 @@ def test_keep_first_holds_the_given_mask_in_the_memory(backbone) -> None:
         assert kept == (share > 0)
         if share:
             assert float(tracker.memory.weights[0, 0]) >= share - 1e-6
+
+
+def test_score_support_drops_components_the_target_model_does_not_see(backbone, monkeypatch) -> None:
+    """The decoder's mask has the object and a blob; the target model's score is 1 on the object only: with
+    ``score_support`` the blob is background in the labels and in the memory; without the setting it is kept."""
+    import models.vos.tracker as tracker_module
+
+    frames = torch.rand(3, 3, 64, 96, generator=torch.Generator().manual_seed(2))
+    first = torch.zeros(64, 96, dtype=torch.long)
+    first[16:32, 16:32] = 1
+    logits = torch.full((1, 64, 96), -5.0)
+    logits[0, 16:32, 16:32] = logits[0, 40:56, 64:80] = 5.0
+    real_filter = tracker_module.apply_filter
+
+    def score_on_the_object(z: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
+        out = torch.zeros_like(real_filter(z, wf))  # (N, K, h, w) at the feature stride
+        stride = 64 // out.shape[-2]
+        out[..., 16 // stride : 32 // stride, 16 // stride : 32 // stride] = 1
+        return out
+
+    monkeypatch.setattr(tracker_module, "apply_filter", score_on_the_object)
+    for support, expected in ((True, first), (False, (logits[0] > 0).long())):
+        tracker = small_tracker(backbone, score_support=support, label_stride=1)
+        fed = crafted_frame(tracker, logits)
+        with torch.inference_mode():
+            pred = list(tracker.segment(frames, {0: first}))
+        assert all(torch.equal(p, expected) for p in pred[1:])
+        assert torch.equal(fed[0][0] > 0.5, expected.bool())
+    with pytest.raises(InputError, match="score_support"):
+        FRTMSettings(score_support="true")
