@@ -18,10 +18,11 @@ from core.errors import InputError
 DROPPED_LOGIT = -30.0
 
 
-def check_search_radius(radius: float) -> float:
-    """``radius`` when it is 0 (no search region) or a positive finite number, else an ``InputError`` naming it."""
+def check_search_radius(radius: float, name: str = "search_radius") -> float:
+    """``radius`` when it is 0 (off) or a positive finite number, else an ``InputError`` naming the setting
+    ``name`` (``search_radius``, ``ignore_band``: multiples of an object's size)."""
     if isinstance(radius, bool) or not isinstance(radius, int | float) or not (math.isfinite(radius) and radius >= 0):
-        raise InputError(f"search_radius must be 0 (off) or a positive multiple of the object's size, got {radius}")
+        raise InputError(f"{name} must be 0 (off) or a positive multiple of the object's size, got {radius}")
     return float(radius)
 
 
@@ -116,3 +117,30 @@ def main_component(masks: np.ndarray) -> np.ndarray:
         if count > 1:
             out[n] = components == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     return out
+
+
+def ignore_band(masks: np.ndarray, width: float) -> np.ndarray:
+    """Pixels outside each mask within ``width * sqrt(A)`` px (Euclidean) of the mask of ``A`` pixels.
+
+    Neither object nor background for the memory: when a mask misses part of its object (an object that grows or
+    turns faster than the target model learns), the missed part lies next to the mask, and without the band it
+    would train the target model as background.
+
+    Args:
+        masks: (N, H, W) bool. width: the band's width in units of the square root of the mask's area (> 0).
+
+    Returns:
+        (N, H, W) bool, all False for an empty mask.
+    """
+    masks = np.asarray(masks)
+    if masks.ndim != 3 or masks.dtype != bool:
+        raise InputError(f"ignore band needs (N, H, W) bool masks, got {masks.dtype} {masks.shape}")
+    if check_search_radius(width, "ignore_band") == 0:
+        raise InputError("ignore band needs a positive width")
+    band = np.zeros_like(masks)
+    for n, mask in enumerate(masks):  # one distance transform per object, not per pixel
+        area = int(mask.sum())
+        if area:
+            distance = cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+            band[n] = ~mask & (distance <= width * math.sqrt(area))
+    return band

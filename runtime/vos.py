@@ -22,7 +22,13 @@ import numpy as np
 
 from core.errors import InputError
 from core.first_frame_augment import first_frame_augment
-from core.search_region import DROPPED_LOGIT, main_component, outside_search_region, unsupported_components
+from core.search_region import (
+    DROPPED_LOGIT,
+    ignore_band,
+    main_component,
+    outside_search_region,
+    unsupported_components,
+)
 from runtime.area import area_resize
 from runtime.bundle import Bundle
 from runtime.video_loop import NumpyVideoLoop, video_command
@@ -196,6 +202,12 @@ class OnnxFRTMTracker(NumpyVideoLoop):
         rows = [self.graphs["insert"](*(m[i : i + 1] for m in self.memory), z[i : i + 1], y[i : i + 1])
                 for i in range(len(self.ids))]
         self.memory = [np.concatenate(column) for column in zip(*rows, strict=True)]
+        width = float(self.settings.get("ignore_band", 0.0))
+        if width > 0:  # the inserted slots' pixel weights, zero on the band (the insert graph has no such input)
+            inserted = np.nonzero((y > 0.5).sum((-2, -1)) >= int(self.settings["min_update_pixels"]))[0]
+            slots, weights = self.memory[4][inserted], self.memory[2]
+            band = ignore_band(y[inserted] > 0.5, width)
+            weights[inserted, slots] = np.where(band, np.float32(0), weights[inserted, slots])
         if self.frame % int(self.settings["update_every"]) == 0:
             self.optimize_filters()
         self._tick("update", start)

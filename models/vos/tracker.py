@@ -8,8 +8,9 @@ then W_p is frozen. With ``flip_test`` the decoder's logits are averaged with th
 ``use_decoder=False`` the upsampled target-model score thresholded at 0.5 replaces the decoder (the
 ``target_model_only`` baseline). With ``search_radius`` an object's mask keeps only the components near its
 previous mask (a search region, as the DCF trackers have; ``core.search_region``); with
-``memory_main_component`` the memory learns from each object's largest component only; with ``keep_first`` the
-first frame keeps a share of the memory's weight (LWL's rule).
+``memory_main_component`` the memory learns from each object's largest component only; with ``ignore_band`` the
+pixels just outside each mask get no weight in the memory; with ``keep_first`` the first frame keeps a share of
+the memory's weight (LWL's rule).
 """
 
 from __future__ import annotations
@@ -21,7 +22,13 @@ import torch.nn.functional as F
 from torch import nn
 
 from core.errors import InputError
-from core.search_region import DROPPED_LOGIT, main_component, outside_search_region, unsupported_components
+from core.search_region import (
+    DROPPED_LOGIT,
+    ignore_band,
+    main_component,
+    outside_search_region,
+    unsupported_components,
+)
 from models.backbones import Backbone
 from models.vos.augment import first_frame_augment
 from models.vos.decoder import SegmentationDecoder, flip_averaged_logits
@@ -45,12 +52,15 @@ def frame_memory_insert(
     fg_target: float = 0.1,
     min_pixels: int = 10,
     keep_first: float = 0.0,
+    ignore: torch.Tensor | None = None,
 ) -> Memory:
     """Insert one frame per object: projected features z (B, C, h, w) and soft labels (B, H', W'); an object
     whose label has fewer than ``min_pixels`` pixels above 0.5 is skipped. Pixel weights follow the hinge rule;
     ``keep_first`` as in ``memory_insert``."""
     valid = (labels > 0.5).flatten(1).sum(1) >= min_pixels
     v = hinge_pixel_weights(labels[:, None], fg_target, min_pixels)[:, 0] if pixel_weighting else labels * 0 + 1
+    if ignore is not None:
+        v = v.masked_fill(ignore, 0)
     return memory_insert(memory, z, labels, v, valid, lr, keep_first)
 
 
@@ -105,8 +115,9 @@ class FRTMLoop(VideoLoop):
         """Per-object logits (N, H, W) and projected features (N, C, h, w) of one frame (3, H, W)."""
 
     @abstractmethod
-    def insert_samples(self, z: torch.Tensor, y: torch.Tensor) -> None:
-        """Insert projected features (N, C, h, w) and soft labels (N, H', W') into the memory."""
+    def insert_samples(self, z: torch.Tensor, y: torch.Tensor, ignore: torch.Tensor | None = None) -> None:
+        """Insert projected features (N, C, h, w) and soft labels (N, H', W') into the memory; ``ignore``
+        (N, H', W') bool pixels get zero weight."""
 
     @abstractmethod
     def optimize_filters(self) -> None:
@@ -183,12 +194,17 @@ class FRTMLoop(VideoLoop):
 
     def update(self, soft: torch.Tensor, z: torch.Tensor) -> None:
         """Insert merged soft masks (N, H, W) and projected features into memory (with ``memory_main_component``
-        each object's largest component only); optimise every k frames."""
+        each object's largest component only; with ``ignore_band`` zero pixel weight on a band around each mask);
+        optimise every k frames."""
         device = soft.device
         start = self._tic(device)
         if self.settings.memory_main_component:
             soft = soft * torch.from_numpy(main_component((soft > 0.5).cpu().numpy())).to(device, soft.dtype)
-        self.insert_samples(z, self._to_label_res(soft))
+        y = self._to_label_res(soft)
+        ignore = None
+        if self.settings.ignore_band > 0:
+            ignore = torch.from_numpy(ignore_band((y > 0.5).cpu().numpy(), self.settings.ignore_band)).to(device)
+        self.insert_samples(z, y, ignore)
         if self.frame % self.settings.update_every == 0:
             self.optimize_filters()
         self._toc("update", start, device)
@@ -264,11 +280,12 @@ class FRTMTracker(nn.Module, FRTMLoop):
         self._toc("decoder", start, device)
         return logits, z
 
-    def insert_samples(self, z: torch.Tensor, y: torch.Tensor) -> None:
-        """Insert projected features (N, C, h, w) and soft labels (N, H', W') into the memory."""
+    def insert_samples(self, z: torch.Tensor, y: torch.Tensor, ignore: torch.Tensor | None = None) -> None:
+        """Insert projected features (N, C, h, w) and soft labels (N, H', W') into the memory; ``ignore``
+        (N, H', W') bool pixels get zero weight."""
         s = self.settings
         self.memory = frame_memory_insert(self.memory, z, y, s.learning_rate, s.pixel_weighting, s.fg_target,
-                                          s.min_update_pixels, s.keep_first)
+                                          s.min_update_pixels, s.keep_first, ignore)
 
     def optimize_filters(self) -> None:
         """Re-optimise W_f on the filled memory slots."""

@@ -52,6 +52,10 @@ class FRTMSettings(SettingsMixin):
             the search region: the decoder refines the target model's detections but adds none of its own.
         memory_main_component: the memory learns from each object's largest connected component (soft mask above
             0.5) only, the rest of its soft mask set to 0 there (``core.search_region.main_component``).
+        ignore_band: the memory gives zero pixel weight to the pixels outside each object's mask within
+            ``ignore_band`` x sqrt(area) px of it (``core.search_region.ignore_band``): the part of an object that
+            its mask misses (it grew or turned faster than the target model learnt) does not train the target
+            model as background; 0: off.
         use_decoder: False segments by thresholding the upsampled target-model score (``target_model_only``).
         seed: seeds the augmentation and the filter initialisation.
         process_height: rows of the frames the tracker works at, aspect kept (``VideoLoop``: frames resized
@@ -80,6 +84,7 @@ class FRTMSettings(SettingsMixin):
     flip_test: bool = False
     search_radius: float = 0.0
     memory_main_component: bool = False
+    ignore_band: float = 0.0
     score_support: bool = False
     use_decoder: bool = True
     seed: int = 0
@@ -90,6 +95,7 @@ class FRTMSettings(SettingsMixin):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         check_feature_norm(self.feature_norm, self.feature_scale)
         check_search_radius(self.search_radius)
+        check_search_radius(self.ignore_band, "ignore_band")
         # a string "false" would read as on
         for name in ("pixel_weighting", "flip_test", "memory_main_component", "score_support", "use_decoder"):
             if not isinstance(getattr(self, name), bool):

@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.search_region import check_search_radius, main_component, outside_search_region, unsupported_components
+from core.search_region import (
+    check_search_radius,
+    ignore_band,
+    main_component,
+    outside_search_region,
+    unsupported_components,
+)
 
 
 def flood_components(mask: np.ndarray) -> list[set[tuple[int, int]]]:
@@ -155,3 +161,24 @@ def test_unsupported_components_match_flood_fill_and_per_pixel_interpolation(see
 def test_unsupported_components_bad_inputs_are_named() -> None:
     with pytest.raises(InputError, match="score support"):
         unsupported_components(np.zeros((4, 5), np.int64), np.zeros((1, 2, 2)), [1, 2])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_ignore_band_matches_brute_force_distances(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    masks = np.stack([random_blobs(rng, (30, 40), [1], 3) == 1 for _ in range(2)] + [np.zeros((30, 40), bool)])
+    pixels = np.argwhere(np.ones((30, 40), bool)).astype(float)
+    for width in (0.25, 0.5, 1.0):
+        expected = np.zeros_like(masks)
+        for n, mask in enumerate(masks):
+            inside = np.argwhere(mask).astype(float)
+            if len(inside):
+                distance = np.sqrt(((pixels[:, None] - inside[None]) ** 2).sum(-1)).min(1).reshape(30, 40)
+                expected[n] = ~mask & (distance <= width * math.sqrt(len(inside)))
+        band = ignore_band(masks, width)
+        assert np.array_equal(band, expected)
+        assert band[:2].any() and not band[2].any()
+    with pytest.raises(InputError, match="bool"):
+        ignore_band(masks.astype(np.uint8), 0.5)
+    with pytest.raises(InputError, match="positive width"):
+        ignore_band(masks, 0.0)

@@ -134,6 +134,33 @@ def test_score_support_parity(vos_setup) -> None:
 
 
 @pytest.mark.slow
+def test_ignore_band_parity(vos_setup) -> None:
+    """The runtime gives the memory's pixels next to each mask zero weight as the PyTorch tracker does: after a
+    crafted frame (a 16 x 24 mask: band 0.5 x sqrt(384) ~ 9.8 px at full label resolution, 4.9 at the bundle's), the
+    memories' pixel weights agree and are zero on the band."""
+    base = vos_setup["tracker"]
+    settings = {"ignore_band": 0.5}
+    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, **settings)).eval()
+    runtime = OnnxFRTMTracker(vos_setup["bundle"])
+    runtime.settings = {**runtime.settings, **settings}
+    frames = torch.rand(2, 3, 64, 96, generator=torch.Generator().manual_seed(5))
+    first = torch.zeros(64, 96, dtype=torch.long)
+    first[16:32, 16:40] = 1
+    logits = torch.where(first.bool(), 5.0, -5.0)[None].float()
+    segment_frame, frame_graph = tracker.segment_frame, runtime.graphs["frame"]
+    tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
+    runtime.graphs["frame"] = lambda *args: (logits.numpy(), frame_graph(*args)[1])
+    with torch.no_grad():
+        list(tracker.segment(frames, {0: first}))
+    list(runtime.segment(frames.numpy(), {0: first.numpy()}))
+    slot = int(tracker.memory.newest[0])
+    assert slot > 0 and int(runtime.memory[4][0]) == slot
+    ours, theirs = tracker.memory.pixel_weights[0, slot].numpy(), runtime.memory[2][0, slot]
+    np.testing.assert_allclose(theirs, ours, rtol=1e-6)
+    assert (ours == 0).sum() > 0 and (ours[tracker.memory.labels[0, slot].numpy() > 0.5] > 0).all()
+
+
+@pytest.mark.slow
 def test_mask_parity(vos_setup) -> None:
     frames, labels = synthetic_video(5, n_frames=6, height=64, width=96, n_objects=2)
     videos = [("v", (frames * 255).round().byte(), labels)]

@@ -159,7 +159,8 @@ def test_memory_main_component_keeps_stray_blobs_out_of_the_memory(backbone) -> 
         tracker = small_tracker(backbone, search_radius=1.0, label_stride=1, memory_main_component=main)
         crafted_frame(tracker, logits)
         insert, inserted = tracker.insert_samples, []
-        tracker.insert_samples = lambda z, y, insert=insert, seen=inserted: (seen.append(y), insert(z, y))[1]
+        tracker.insert_samples = lambda z, y, *rest, insert=insert, seen=inserted: (
+            seen.append(y), insert(z, y, *rest))[1]
         with torch.inference_mode():
             pred = list(tracker.segment(frames, {0: first}))
         assert torch.equal(pred[1], (logits[0] > 0).long())
@@ -213,3 +214,30 @@ def test_score_support_drops_components_the_target_model_does_not_see(backbone, 
         assert torch.equal(fed[0][0] > 0.5, expected.bool())
     with pytest.raises(InputError, match="score_support"):
         FRTMSettings(score_support="true")
+
+
+def test_ignore_band_gives_zero_memory_weight_next_to_the_mask(backbone) -> None:
+    """With ``ignore_band`` 0.5 the memory slot of frame 1 (a 10 x 10 mask: band 5 px) has pixel weight 0 on the
+    pixels outside the mask within 5 px of it (Euclidean, by brute force) and the hinge weights elsewhere; without
+    the setting no weight is 0."""
+    frames = torch.rand(2, 3, 64, 96, generator=torch.Generator().manual_seed(3))
+    first = torch.zeros(64, 96, dtype=torch.long)
+    first[20:30, 30:40] = 1
+    logits = torch.where(first.bool(), 5.0, -5.0)[None].float()
+    rows, cols = torch.meshgrid(torch.arange(64), torch.arange(96), indexing="ij")
+    inside = torch.stack(torch.nonzero(first, as_tuple=True), -1).float()  # (A, 2)
+    distance = torch.cdist(torch.stack([rows, cols], -1).flatten(0, 1).float(), inside).min(1).values.view(64, 96)
+    band = (distance > 0) & (distance <= 5.0)
+    for width in (0.5, 0.0):
+        tracker = small_tracker(backbone, ignore_band=width, label_stride=1, update_every=100)
+        crafted_frame(tracker, logits)
+        with torch.inference_mode():
+            list(tracker.segment(frames, {0: first}))
+        slot = int(tracker.memory.newest[0])
+        weights = tracker.memory.pixel_weights[0, slot]
+        assert slot > 0 and weights[first.bool()].min() > 0
+        assert torch.equal(weights == 0, band if width else torch.zeros_like(band))
+        assert weights[~band & ~first.bool()].unique().numel() == 1  # the hinge's background weight
+    for width in (-0.5, float("nan")):
+        with pytest.raises(InputError, match="ignore_band"):
+            FRTMSettings(ignore_band=width)
