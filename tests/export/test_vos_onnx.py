@@ -72,27 +72,33 @@ def test_frame_graph_with_flip_test_parity(vos_setup, tmp_path) -> None:
     assert np.abs(logits - plain.numpy()).max() > 1e-3  # the exported graph does read the mirrored frame
 
 
+def paired_trackers(vos_setup, logits: torch.Tensor, **settings) -> tuple[FRTMTracker, OnnxFRTMTracker]:
+    """The PyTorch tracker and the runtime of the test bundle, with ``settings`` changed in both, each segmenting
+    every frame with the crafted decoder ``logits`` (N, H, W) (their features and target models stay their own)."""
+    base = vos_setup["tracker"]
+    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, **settings)).eval()
+    runtime = OnnxFRTMTracker(vos_setup["bundle"])
+    runtime.settings = {**runtime.settings, **settings}
+    segment_frame, frame_graph = tracker.segment_frame, runtime.graphs["frame"]
+    tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
+    runtime.graphs["frame"] = lambda *args: (logits.numpy(), frame_graph(*args)[1])
+    return tracker, runtime
+
+
 @pytest.mark.slow
 def test_search_region_parity(vos_setup) -> None:
     """The runtime applies the search region and the memory's main component as the PyTorch tracker does: on a
     crafted frame (the object moved, a small blob beside it, a look-alike far away) both give the far blob to the
     background, keep the near one in the labels, and insert the same memory labels (the object's component only)."""
-    base = vos_setup["tracker"]
-    settings = {"search_radius": 1.0, "memory_main_component": True}
-    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, **settings)).eval()
-    runtime = OnnxFRTMTracker(vos_setup["bundle"])
-    runtime.settings = {**runtime.settings, **settings}
     frames = torch.rand(3, 3, 64, 96, generator=torch.Generator().manual_seed(3))
     first = torch.zeros(64, 96, dtype=torch.long)
     first[10:20, 10:20] = 1
     logits = torch.full((1, 64, 96), -5.0)
     logits[0, 12:22, 13:23] = logits[0, 12:16, 26:30] = logits[0, 40:50, 60:70] = 5.0
-    segment_frame, frame_graph, insert_graph = tracker.segment_frame, runtime.graphs["frame"], runtime.graphs["insert"]
-    tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
-    runtime.graphs["frame"] = lambda *args: (logits.numpy(), frame_graph(*args)[1])
+    tracker, runtime = paired_trackers(vos_setup, logits, search_radius=1.0, memory_main_component=True)
     inserted = {"torch": [], "runtime": []}
-    insert = tracker.insert_samples
-    tracker.insert_samples = lambda z, y: (inserted["torch"].append(y.numpy()), insert(z, y))[1]
+    insert, insert_graph = tracker.insert_samples, runtime.graphs["insert"]
+    tracker.insert_samples = lambda z, y, *rest: (inserted["torch"].append(y.numpy()), insert(z, y, *rest))[1]
     runtime.graphs["insert"] = lambda *args: (inserted["runtime"].append(args[-1]), insert_graph(*args))[1]
     with torch.no_grad():
         ours = [p.numpy() for p in tracker.segment(frames, {0: first})]
@@ -113,19 +119,12 @@ def test_score_support_parity(vos_setup) -> None:
     search region: a static video whose first frame the target model was fitted on, crafted decoder logits with the
     object, a blob in the search region's reach and one beyond it; both trackers keep the object (its score is
     high) and give both blobs to the background (the far one by the search region, the near one by the support)."""
-    base = vos_setup["tracker"]
-    settings = {"search_radius": 1.0, "score_support": True}
-    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, **settings)).eval()
-    runtime = OnnxFRTMTracker(vos_setup["bundle"])
-    runtime.settings = {**runtime.settings, **settings}
     frames = torch.rand(1, 3, 64, 96, generator=torch.Generator().manual_seed(4)).expand(3, -1, -1, -1)
     first = torch.zeros(64, 96, dtype=torch.long)
     first[16:32, 16:40] = 1
     logits = torch.full((1, 64, 96), -5.0)
     logits[0, 16:32, 16:40] = logits[0, 44:60, 64:88] = logits[0, 16:32, 52:58] = 5.0
-    segment_frame, frame_graph = tracker.segment_frame, runtime.graphs["frame"]
-    tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
-    runtime.graphs["frame"] = lambda *args: (logits.numpy(), frame_graph(*args)[1])
+    tracker, runtime = paired_trackers(vos_setup, logits, search_radius=1.0, score_support=True)
     with torch.no_grad():
         ours = [p.numpy() for p in tracker.segment(frames, {0: first})]
     theirs = list(runtime.segment(frames.numpy(), {0: first.numpy()}))
@@ -138,18 +137,10 @@ def test_ignore_band_parity(vos_setup) -> None:
     """The runtime gives the memory's pixels next to each mask zero weight as the PyTorch tracker does: after a
     crafted frame (a 16 x 24 mask: band 0.5 x sqrt(384) ~ 9.8 px at full label resolution, 4.9 at the bundle's), the
     memories' pixel weights agree and are zero on the band."""
-    base = vos_setup["tracker"]
-    settings = {"ignore_band": 0.5}
-    tracker = FRTMTracker(base.backbone, base.decoder, dataclasses.replace(base.settings, **settings)).eval()
-    runtime = OnnxFRTMTracker(vos_setup["bundle"])
-    runtime.settings = {**runtime.settings, **settings}
     frames = torch.rand(2, 3, 64, 96, generator=torch.Generator().manual_seed(5))
     first = torch.zeros(64, 96, dtype=torch.long)
     first[16:32, 16:40] = 1
-    logits = torch.where(first.bool(), 5.0, -5.0)[None].float()
-    segment_frame, frame_graph = tracker.segment_frame, runtime.graphs["frame"]
-    tracker.segment_frame = lambda image: (logits.clone(), segment_frame(image)[1])
-    runtime.graphs["frame"] = lambda *args: (logits.numpy(), frame_graph(*args)[1])
+    tracker, runtime = paired_trackers(vos_setup, torch.where(first.bool(), 5.0, -5.0)[None], ignore_band=0.5)
     with torch.no_grad():
         list(tracker.segment(frames, {0: first}))
     list(runtime.segment(frames.numpy(), {0: first.numpy()}))
