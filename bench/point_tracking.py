@@ -6,12 +6,14 @@ Middlebury pairs in ``../shared/data/middlebury/<Seq>``; from the first ground-t
 consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder>``), a seeded synthetic
 sequence with chained ground truth (``--synthetic``) and the synthetic stress conditions of
 :mod:`data.flow.stress` (``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion
-blur, fast motion, illumination change, JPEG, a long run). Metrics at the last frame, per method and dataset:
-``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at``
-(fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_s``, with
-KLT in the run ``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder hid some points
-(``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep their last
-position for the EPE statistics and never count as inliers.
+blur, fast motion, illumination change, JPEG, a long run) and real photographs seen through chains of small
+homographies under growing defocus blur, JPEG compression or darkness (:mod:`data.flow.homography`,
+``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file stem>``, 6 frames). Metrics at the
+last frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px),
+``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
+``point_frames_per_s``, ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per
+second) and, where an occluder hid some points (``stress_occlusion``), ``occluded_lost_frac``: the fraction of
+those flagged lost. Lost points keep their last position for the EPE statistics and never count as inliers.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
@@ -25,6 +27,8 @@ in onnxruntime with ``--threads`` threads) on ``--bundle DIR`` or a bundle expor
     python -m bench.point_tracking --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
         --plot docs/figures/point_tracking.png
     python -m bench.point_tracking --stress --methods ccot klt --plot stress.png   # also stress_conditions.png
+    python -m bench.point_tracking --methods ccot klt --json \
+        --homography ../shared/data/middlebury/{Dimetrodon,Hydrangea,RubberWhale,Venus}/frame_0010.png
 """
 
 from __future__ import annotations
@@ -40,8 +44,17 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from core.frames import read_frame_gray
 from core.threads import cpu_threads
-from data.flow import STRESS_CONDITIONS, read_sintel_sequence, stress_sequence, synthetic_sequence, tracks_from_flow
+from data.flow import (
+    HOMOGRAPHY_CONDITIONS,
+    STRESS_CONDITIONS,
+    homography_sequence,
+    read_sintel_sequence,
+    stress_sequence,
+    synthetic_sequence,
+    tracks_from_flow,
+)
 from models.tracking import PointTracker, good_features_to_track
 from models.tracking.klt import klt_track
 
@@ -104,6 +117,17 @@ def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0, 
     tracks, valid = seq.track(points)
     occluded = seq.hidden(tracks).any(0) if seq.occluder is not None else None
     return Dataset(frames, points, tracks[-1], valid[-1], occluded)
+
+
+def homography_dataset(image: str | Path, condition: str, n_points: int, seed: int = 0, spacing: int = 3,
+                       frames: int = 6) -> Dataset:
+    """A real photograph (read as gray) through ``frames`` chained homographies under ``condition``
+    (:func:`data.flow.homography_sequence`), ground truth at the last frame."""
+    seq = homography_sequence(read_frame_gray(image), condition, frames, seed)
+    frames_u8 = seq.frames.round().clip(0, 255).astype(np.uint8)
+    points = detect(frames_u8[0], n_points, spacing)
+    tracks, valid = seq.track(points)
+    return Dataset(frames_u8, points, tracks[-1], valid[-1])
 
 
 def clock(device: str):
@@ -266,7 +290,8 @@ def plot_conditions(result: dict, path: str | Path) -> None:
             ax.bar(x + (i - (len(methods) - 1) / 2) * width, values, width, label=method)
     axes[0].set(ylabel="inliers (not lost, EPE < 3 px)", ylim=(0, 1), title="per dataset and condition")
     axes[1].set(ylabel="mean inlier EPE (px)")
-    axes[1].set_xticks(x, [n.replace("stress_", "") for n in names], rotation=30, ha="right")
+    labels = [n.replace("stress_", "").replace("homography_", "h_") for n in names]
+    axes[1].set_xticks(x, labels, rotation=30, ha="right")
     axes[0].legend(fontsize=8, ncol=len(methods))
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -371,6 +396,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--synthetic", action="store_true", help="add the synthetic sequence")
     parser.add_argument("--stress", nargs="*", choices=STRESS_CONDITIONS, metavar="CONDITION",
                         help="add synthetic stress conditions (all without names): " + ", ".join(STRESS_CONDITIONS))
+    parser.add_argument("--homography", nargs="+", action="extend", default=[], metavar="IMAGE",
+                        help="real images to track through chained homographies; repeat or list several")
+    parser.add_argument("--homography-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS,
+                        default=["blur", "jpeg", "light"], metavar="CONDITION",
+                        help="degradations of the homography sequences: " + ", ".join(HOMOGRAPHY_CONDITIONS))
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
@@ -407,6 +437,11 @@ def main(argv: list[str] | None = None) -> int:
         for folder in args.sintel:
             path = Path(folder)
             datasets[f"{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points, args.spacing)
+        for condition in args.homography_conditions if args.homography else []:
+            for image in args.homography:
+                path = Path(image)
+                name = f"homography_{condition}_{path.parent.name}_{path.stem}"
+                datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing)
         if args.synthetic or not (datasets or args.stress is not None):
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
         for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:

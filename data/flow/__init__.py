@@ -1,18 +1,23 @@
 """Optical-flow data for point tracking: Middlebury ``.flo`` files, Sintel folders, ground-truth tracks from
-flow (thesis 3.4) and seeded synthetic sequences with chained ground truth, plain or under stress conditions.
+flow (thesis 3.4), seeded synthetic sequences with chained ground truth, plain or under stress conditions, and
+real photographs seen through chains of homographies under growing blur, compression or darkness.
 """
 
 from data.flow.flo import read_flo, write_flo
 from data.flow.ground_truth import divergent_flow_mask, sample_bilinear, tracks_from_flow
+from data.flow.homography import HOMOGRAPHY_CONDITIONS, HomographySequence, homography_sequence
 from data.flow.sintel import SintelPair, read_sintel_pair, read_sintel_sequence
 from data.flow.stress import STRESS_CONDITIONS, stress_sequence
 from data.flow.synthetic import SyntheticSequence, synthetic_sequence
 
 __all__ = [
+    "HOMOGRAPHY_CONDITIONS",
+    "HomographySequence",
     "STRESS_CONDITIONS",
     "SintelPair",
     "SyntheticSequence",
     "divergent_flow_mask",
+    "homography_sequence",
     "read_flo",
     "read_sintel_pair",
     "read_sintel_sequence",

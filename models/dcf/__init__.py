@@ -26,6 +26,7 @@ from models.dcf.mosse import (
     mosse_train,
     mosse_update,
 )
+from models.dcf.noise import ImageNoiseStd, image_noise_std
 from models.dcf.peak import response_peak
 from models.dcf.preprocess import DcfPreprocess, cosine_window, dcf_preprocess
 from models.dcf.psr import PeakToSidelobeRatio, peak_to_sidelobe_ratio
@@ -33,6 +34,7 @@ from models.dcf.psr import PeakToSidelobeRatio, peak_to_sidelobe_ratio
 __all__ = [
     "CcotFilter",
     "DcfPreprocess",
+    "ImageNoiseStd",
     "Mosse",
     "PeakToSidelobeRatio",
     "ccot_filter",
@@ -46,6 +48,7 @@ __all__ = [
     "exponential_forgetting_weights",
     "fourier_series_peak",
     "gaussian_label",
+    "image_noise_std",
     "mosse_filter",
     "mosse_response",
     "mosse_train",

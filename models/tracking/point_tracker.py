@@ -39,7 +39,7 @@ from torch import Tensor, nn
 from tqdm import tqdm
 
 from core.errors import InputError
-from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label
+from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label, image_noise_std
 from models.dcf._signal import full_frequencies
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
@@ -51,6 +51,9 @@ DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
 
 # kornia's ``pyrdown`` (5-tap binomial blur, then 2x2 averaging) as one separable 6-tap filter at stride 2
 _PYRDOWN_TAPS = (1.0, 5.0, 10.0, 10.0, 5.0, 1.0)
+# the variance of white noise after one pyramid level: the squared taps summed, over both axes
+_PYRDOWN_NOISE_GAIN = (sum(t * t for t in _PYRDOWN_TAPS) / sum(_PYRDOWN_TAPS) ** 2) ** 2
+_QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
 
 
 def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
@@ -158,6 +161,10 @@ class PointTracker(nn.Module):
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
         the sample spectra and the transforms shrink with it.
+        noise_reg: weight of the noise-adaptive regulariser (0: off): the filter's denominator gains
+        ``noise_reg`` times the expected power of the frame's noise in every frequency of the point's
+        normalised sample (:meth:`_noise_power`), so frequencies where a blurred, dark or low-contrast patch
+        has less signal than noise do not steer the peak (a Wiener filter's regulariser, over-weighted).
     """
 
     def __init__(
@@ -174,6 +181,7 @@ class PointTracker(nn.Module):
         fb_threshold: float | None = 1.0,
         psr_exclude: int = 7,
         band: float | tuple[float, ...] = 0.7,
+        noise_reg: float = 30.0,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -186,6 +194,9 @@ class PointTracker(nn.Module):
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
         self.psr_relative, self.fb_threshold = psr_relative, fb_threshold
+        if not noise_reg >= 0:
+            raise InputError(f"noise_reg must be a non-negative number, got {noise_reg}")
+        self.noise_reg = noise_reg
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
@@ -204,14 +215,20 @@ class PointTracker(nn.Module):
             label = label[band_index(n, m), : m + 1, None].transpose(1, 2)
             self.register_buffer(f"label_{level}", label.float(), persistent=False)  # (2M + 1, 1, M + 1)
             mean_spectrum = torch.stack(dft(torch.ones(n, 1, n)))  # a constant patch's [re, im] (2, 2M + 1, 1, M + 1)
+            # expected power per frequency of unit white noise through the sample transform: the sum of |DFT|^2
+            # of all n^2 unit impulses, (2M + 1, 1, M + 1)
+            impulses = torch.eye(n * n).view(n * n, n, n).transpose(0, 1)  # (n, n^2, n)
+            noise_spectrum = sum(part.square().sum(1, keepdim=True) for part in dft(impulses))
+            self.register_buffer(f"noise_spectrum_{level}", noise_spectrum, persistent=False)
             self.register_buffer(f"mean_spectrum_{level}", mean_spectrum, persistent=False)
             omega = band_frequencies(n, m, False) * (2 * math.pi / n)  # angular frequencies of the rows, per px
             self.register_buffer(f"omega_y_{level}", omega[:, None].float(), persistent=False)  # (2M + 1, 1)
             self.register_buffer(f"omega_x_{level}", omega[: m + 1].float(), persistent=False)  # (M + 1,)
 
-    def _sample(self, image: Tensor, centres: Tensor, level: int) -> tuple[Tensor, Tensor]:
+    def _sample(self, image: Tensor, centres: Tensor, level: int) -> tuple[Tensor, Tensor, Tensor]:
         """Band-limited spectrum (real, imaginary ``(2M + 1, P, M + 1)``) of the normalised (zero mean, unit
-        variance), windowed patches around ``centres`` ``(P, 2)`` (pixels of that level).
+        variance), windowed patches around ``centres`` ``(P, 2)`` (pixels of that level), and the patches' std
+        ``(P,)`` before the normalisation.
 
         The normalisation is linear per patch, so it is applied to the spectrum: the mean times the spectrum of a
         constant patch is subtracted, then the result is divided by the standard deviation. A patch flatter than
@@ -226,7 +243,24 @@ class PointTracker(nn.Module):
         scale = torch.where(flat, torch.zeros_like(std), 1 / (std + 1e-5))[:, None]
         mean = mean[:, None]
         (dr, di), (zr, zi) = getattr(self, f"mean_spectrum_{level}"), self.dfts[level](x)
-        return (zr - mean * dr) * scale, (zi - mean * di) * scale
+        return (zr - mean * dr) * scale, (zi - mean * di) * scale, std
+
+    def _noise_variance(self, frame: Tensor) -> Tensor | None:
+        """Variance ``(1,)`` of the white noise of a ``(1, 1, H, W)`` frame (:func:`~models.dcf.image_noise_std` on
+        every 4th pixel), at least the 8-bit rounding's; None when ``noise_reg`` is 0. Estimated on the frame, not
+        on the coarser pyramid levels, where texture has become as fine as noise."""
+        if self.noise_reg == 0:
+            return None
+        return image_noise_std(frame, stride=4).square().clamp_min(_QUANTISATION_VAR)
+
+    @staticmethod
+    def _noise_power(variance: Tensor | None, std: Tensor, level: int) -> Tensor | None:
+        """Noise variance ``(P,)`` of the normalised level-``level`` samples of patches with std ``std`` ``(P,)``:
+        the frame's noise ``variance`` reduced by ``level`` pyramid reductions, over each patch's variance
+        (None passes through)."""
+        if variance is None:
+            return None
+        return variance * _PYRDOWN_NOISE_GAIN**level / (std.square() + 1e-12)
 
     @staticmethod
     def _frame(frame: Tensor) -> Tensor:
@@ -263,7 +297,7 @@ class PointTracker(nn.Module):
         pyramid = image_pyramid(frame, self.levels)
         ones = torch.ones_like(points[:, 0])
         filters = tuple(
-            self._learn(None, *self._sample(pyramid[lv], (positions + 0.5) / 2**lv - 0.5, lv), ones, lv)
+            self._learn(None, *self._sample(pyramid[lv], (positions + 0.5) / 2**lv - 0.5, lv)[:2], ones, lv)
             for lv in range(self.levels)
         )
         psr = torch.full_like(points[:, 0], float("inf"))
@@ -302,13 +336,14 @@ class PointTracker(nn.Module):
             positions, lost, psr ``(P,)`` and the filters after this frame.
         """
         pyramid = image_pyramid(frame, self.levels)
+        noise = self._noise_variance(frame)
         start = torch.where(lost.unsqueeze(-1), torch.zeros_like(positions), positions)
         d = torch.zeros_like(positions)
         spectra, centres = [], []
         for level in reversed(range(self.levels)):
             centre = (start + d + 0.5) / 2**level - 0.5
-            zr, zi = self._sample(pyramid[level], centre, level)
-            spectrum = self._response(filters[level], zr, zi)
+            zr, zi, std = self._sample(pyramid[level], centre, level)
+            spectrum = self._response(filters[level], zr, zi, self._noise_power(noise, std, level), level)
             score = self.dfts[level].inverse(spectrum)  # (N, P, N)
             argmax = interleaved_argmax(score)
             d = d + 2**level * self._peak(spectrum, score, argmax, level)
@@ -323,7 +358,7 @@ class PointTracker(nn.Module):
         lost = lost | ~self._inside(moved, frame)
         weak = ~(psr >= self._lost_threshold(psr, lost))
         if self.fb_threshold is not None:
-            weak = self._fails_backward(weak, previous, start, *sample)
+            weak = self._fails_backward(weak, previous, start, *sample, noise)
         lost = lost | weak | ~(psr >= self.psr_threshold)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
         target = torch.where(lost.unsqueeze(-1), start, moved)
@@ -334,35 +369,45 @@ class PointTracker(nn.Module):
             updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
         return positions, lost, psr, *updated
 
-    def _fails_backward(self, weak: Tensor, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor) -> Tensor:
+    def _fails_backward(
+        self, weak: Tensor, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor, noise: Tensor | None = None
+    ) -> Tensor:
         """``weak`` ``(P,)`` and-ed with a forward-backward miss above ``fb_threshold`` (see
-        :meth:`_backward_error`). Eager runs test only the weak points (a few per cent, so the test costs
-        almost nothing); an exported graph, whose shapes cannot depend on the data, tests all of them. Both
-        give the same flags."""
+        :meth:`_backward_error`; ``noise``: the frames' noise variance, :meth:`_noise_variance`). Eager runs test
+        only the weak points (a few per cent, so the test costs almost nothing); an exported graph, whose shapes
+        cannot depend on the data, tests all of them. Both give the same flags."""
         if _exporting() or torch.compiler.is_compiling():
-            return weak & ~(self._backward_error(previous, start, zr, zi) <= self.fb_threshold)
+            return weak & ~(self._backward_error(previous, start, zr, zi, noise) <= self.fb_threshold)
         index = weak.nonzero()[:, 0]
-        miss = self._backward_error(previous, start[index], zr[:, index], zi[:, index])
+        miss = self._backward_error(previous, start[index], zr[:, index], zi[:, index], noise)
         return weak.index_put((index,), ~(miss <= self.fb_threshold))
 
-    def _backward_error(self, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor) -> Tensor:
+    def _backward_error(
+        self, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor, noise: Tensor | None = None
+    ) -> Tensor:
         """Forward-backward error ``(P,)`` in px (Kalal et al. 2010, on level 0): a filter trained on the new
         sample alone (band-limited spectrum ``(2M + 1, P, M + 1)`` centred on the new position) searches the
         previous frame around the start positions ``(P, 2)``; the distance of its peak from the start is how far
         tracking back would miss (one search: the sample window pulls the peak towards the centre, so misses of a
         few px read up to about 20 % short). A point that an occluder covered or that locked onto another
         structure comes back elsewhere; one tracked correctly through blur, noise or a brightness change comes
-        back home."""
+        back home. ``noise``: the frames' noise variance (:meth:`_noise_variance`; None: no noise term)."""
         new_sample_filter = self._learn(None, zr, zi, None, 0)
-        score = self.dfts[0].inverse(self._response(new_sample_filter, *self._sample(previous, start, 0)))
+        sr, si, std = self._sample(previous, start, 0)
+        score = self.dfts[0].inverse(self._response(new_sample_filter, sr, si, self._noise_power(noise, std, 0), 0))
         return interleaved_peak(score)[0].norm(dim=-1)
 
-    def _response(self, filters: Tensor, zr: Tensor, zi: Tensor) -> Tensor:
+    def _response(self, filters: Tensor, zr: Tensor, zi: Tensor, noise: Tensor | None, level: int) -> Tensor:
         """Score spectrum ``[re | im]`` ``(2M + 1, P, 2M + 2)`` of a level's filters ``(3, 2M + 1, P, M + 1)`` (see
-        :class:`TrackerState`) on sample spectra ``(2M + 1, P, M + 1)``: ``A Z / (B + reg_rel mean(B))``."""
+        :class:`TrackerState`) on sample spectra ``(2M + 1, P, M + 1)``: ``A Z / (B + reg_rel mean(B) + noise_reg
+        noise S)``, with ``noise`` ``(P,)`` from :meth:`_noise_power` (None: no noise term) and ``S`` the
+        level's per-frequency power of unit white noise in a sample."""
         ar, ai, b = filters.unbind(0)
         mean_energy = b.sum(0).sum(1, keepdim=True) / (b.shape[0] * b.shape[2])  # (P, 1), outer axis first
-        inv = 1 / (b + self.reg_rel * mean_energy)
+        regulariser = self.reg_rel * mean_energy
+        if noise is not None:
+            regulariser = regulariser + self.noise_reg * noise[:, None] * getattr(self, f"noise_spectrum_{level}")
+        inv = 1 / (b + regulariser)
         return torch.cat([(ar * zr - ai * zi) * inv, (ar * zi + ai * zr) * inv], -1)
 
     def _lost_threshold(self, psr: Tensor, lost: Tensor) -> Tensor:

@@ -67,6 +67,30 @@ def test_stress_conditions_are_rows_with_occlusion_recall(capsys):
         assert m["first_call_s"] > 0
 
 
+def test_homography_rows_per_image_and_condition(tmp_path, capsys):
+    """``--homography A B`` with two conditions gives four rows named by condition, folder and file; a missing
+    image is refused with its name."""
+    import cv2
+
+    rng = np.random.default_rng(0)
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        texture = cv2.GaussianBlur(rng.normal(128, 40, (96, 128)), (0, 0), 1.5).clip(0, 255).astype(np.uint8)
+        cv2.imwrite(str(tmp_path / name / "img.png"), texture)
+    argv = ["--homography", str(tmp_path / "a" / "img.png"), "--homography", str(tmp_path / "b" / "img.png"),
+            "--homography-conditions", "blur", "none", "--points", "40", "--methods", "ccot", "klt",
+            "--repeats", "1", "--json"]
+    assert point_tracking.main(argv) == 0
+    result = json.loads(capsys.readouterr().out)["datasets"]
+    assert set(result) == {f"homography_{c}_{f}_img" for c in ("blur", "none") for f in ("a", "b")}
+    for row in result.values():
+        assert row["frames"] == 6 and 0 < row["evaluated_points"] <= row["points"] <= 40
+    from core.errors import InputError
+
+    with pytest.raises(InputError, match="missing.png"):
+        point_tracking.main(["--homography", str(tmp_path / "missing.png"), "--json"])
+
+
 @pytest.mark.slow  # uses an exported bundle
 def test_runtime_tracker_is_a_method(tracking_bundle, capsys):
     assert point_tracking.main(["--synthetic", "--frames", "4", "--points", "40", "--repeats", "1", "--methods",

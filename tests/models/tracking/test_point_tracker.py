@@ -8,6 +8,8 @@ import torch
 from kornia.geometry.transform import pyrdown
 
 from core.errors import InputError
+from models.dcf import cosine_window, cubic_spline_fourier
+from models.dcf.dft import band_index
 from models.tracking import PointTracker, extract_patches, good_features_to_track
 from models.tracking.point_tracker import image_pyramid
 
@@ -116,7 +118,7 @@ def test_backward_error_is_the_distance_of_a_wrong_match(miss):
     tracker = PointTracker("ccot").double()
     start = torch.tensor([[50.0, 60.0], [70.0, 64.0], [64.0, 80.0]], dtype=torch.float64)
     wrong = start + d + torch.tensor(miss, dtype=torch.float64)
-    sample = tracker._sample(moved[None, None], wrong, 0)
+    sample = tracker._sample(moved[None, None], wrong, 0)[:2]
     error = tracker._backward_error(img[None, None], start, *sample)
     expected = math.hypot(*miss)
     assert (error >= 0.75 * expected - 0.02).all() and (error <= 1.02 * expected + 0.02).all(), (error, expected)
@@ -238,3 +240,58 @@ def test_compiled_step_equals_eager():
     for got, want in zip(compiled, eager, strict=True):
         torch.testing.assert_close(got, want, rtol=1e-4, atol=1e-4)
     assert not eager[1].any()
+
+
+@pytest.mark.parametrize("method", ["ccot", "mosse"])
+def test_noise_spectrum_is_the_expected_power_of_white_noise(method):
+    """Closed form: unit white noise ``n`` gives ``E |DFT(w n)(k)|^2 = s_y(k_y)^2 s_x(k_x)^2 sum w^2`` in every
+    frequency of the sample transform (window ``w``, per-axis scales ``s`` of the continuous filter), here
+    against a Monte Carlo mean as well."""
+    tracker = PointTracker(method).double()
+    for level, (n, m) in enumerate(zip(tracker.sizes, tracker.bands, strict=True)):
+        window = cosine_window((n,), dtype=torch.float64)
+        scale = torch.ones(n, dtype=torch.float64)
+        if method != "mosse":
+            scale = cubic_spline_fourier(torch.fft.fftfreq(n, dtype=torch.float64)) / n
+        rows = scale[band_index(n, m)]
+        power = rows[:, None] ** 2 * rows[None, : m + 1] ** 2 * window.square().sum() ** 2
+        got = getattr(tracker, f"noise_spectrum_{level}")[:, 0]
+        torch.testing.assert_close(got, power, rtol=1e-6, atol=0)  # built in float32
+    gen = torch.Generator().manual_seed(0)
+    n = tracker.sizes[1]
+    noise = torch.randn(n, 20000, n, generator=gen, dtype=torch.float64)
+    zr, zi = tracker.dfts[1](noise)
+    monte_carlo = (zr.square() + zi.square()).mean(1)
+    torch.testing.assert_close(monte_carlo, tracker.noise_spectrum_1[:, 0], rtol=0.05, atol=0)
+
+
+def _blur(img: torch.Tensor, sigma: float) -> torch.Tensor:
+    """Gaussian blur of a periodic image through its spectrum."""
+    h, w = img.shape
+    ky = torch.fft.fftfreq(h, dtype=torch.float64).reshape(-1, 1)
+    kx = torch.fft.rfftfreq(w, dtype=torch.float64).reshape(1, -1)
+    gain = torch.exp(-2 * math.pi**2 * sigma**2 * (ky**2 + kx**2))
+    return torch.fft.irfft2(torch.fft.rfft2(img) * gain, s=(h, w))
+
+
+def test_noise_regulariser_makes_blurred_noisy_tracks_more_precise():
+    """On a strongly blurred texture with sensor noise (the low-signal case: most of the band holds only noise),
+    the noise-adaptive regulariser keeps the noise-only frequencies from steering the peak."""
+    gen = torch.Generator().manual_seed(6)
+    img = _blur(_smooth_image(160, 160, 6), 3.0)
+    d = (2.4, -1.3)
+    frames = [img, _translate(img, *d)]
+    frames = [(f + torch.randn(f.shape, generator=gen, dtype=torch.float64)).round() for f in frames]
+    grid = torch.arange(30.0, 131.0, 10.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    errors = {}
+    for noise_reg in (0.0, 30.0):
+        tracks, _, _ = PointTracker("ccot", noise_reg=noise_reg).double().track(frames, points)
+        errors[noise_reg] = (tracks[1] - points - torch.tensor(d, dtype=torch.float64)).norm(dim=-1).median().item()
+    assert errors[30.0] < 0.7 * errors[0.0], errors
+
+
+def test_noise_reg_is_checked():
+    for value in (-1.0, float("nan")):
+        with pytest.raises(InputError, match="noise_reg"):
+            PointTracker("ccot", noise_reg=value)

@@ -1,0 +1,75 @@
+"""Real-image homography sequences: seeded, ground truth that holds (frame t sampled at the tracks equals frame 0
+at the points), the degradation growing frame by frame, bad input refused."""
+
+import cv2
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from data.flow import HOMOGRAPHY_CONDITIONS, homography_sequence
+
+
+def _image(h: int = 120, w: int = 160) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    texture = cv2.GaussianBlur(rng.normal(0, 1, (h, w)), (0, 0), 2.0)
+    return np.clip(128 + 40 * texture / texture.std(), 0, 255)
+
+
+def _sample(frame: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    maps = xy.astype(np.float32)[None]
+    return cv2.remap(frame, maps[..., 0], maps[..., 1], cv2.INTER_LINEAR)[0]
+
+
+@pytest.mark.parametrize("condition", HOMOGRAPHY_CONDITIONS)
+def test_seeded_frames_in_range(condition):
+    a = homography_sequence(_image(), condition, frames=4, seed=3)
+    b = homography_sequence(_image(), condition, frames=4, seed=3)
+    np.testing.assert_array_equal(a.frames, b.frames)
+    assert a.frames.shape == (4, 120, 160) and a.frames.dtype == np.float32
+    assert a.frames.min() >= 0 and a.frames.max() <= 255
+    np.testing.assert_array_equal(a.homographies[0], np.eye(3))
+
+
+def test_ground_truth_follows_the_content():
+    seq = homography_sequence(_image(), "none", frames=5, seed=1)
+    gen = np.random.default_rng(1)
+    points = gen.uniform([20, 20], [140, 100], (300, 2))
+    tracks, valid = seq.track(points)
+    for t in range(1, 5):
+        ok = valid[t]
+        assert ok.mean() > 0.5
+        np.testing.assert_allclose(tracks[t], cv2.perspectiveTransform(points[None], seq.homographies[t])[0])
+        moved = np.abs(_sample(seq.frames[t], tracks[t][ok]) - _sample(seq.frames[0], points[ok])).mean()
+        wrong = np.abs(_sample(seq.frames[t], tracks[t][ok] + 2.0) - _sample(seq.frames[0], points[ok])).mean()
+        assert moved < 2.5 and wrong > 3 * moved, (t, moved, wrong)  # the noise (std 1 per frame) is what is left
+
+
+def test_valid_points_stay_inside_every_frame():
+    seq = homography_sequence(_image(), "none", frames=6, seed=2, step=15.0)
+    points = np.array([[3.0, 60.0], [80.0, 60.0], [159.0, 119.0]])
+    tracks, valid = seq.track(points)
+    assert not valid[:, [0, 2]].any() and valid[0, 1]
+    assert (valid[1:] <= valid[:-1]).all()  # once out, never valid again
+
+
+def test_degradation_grows_over_the_frames():
+    image = _image()
+    blur = homography_sequence(image, "blur", frames=6).frames
+    sharpness = [np.abs(cv2.Laplacian(f, cv2.CV_32F)).mean() for f in blur]
+    assert all(a > b for a, b in zip(sharpness, sharpness[1:], strict=False))
+    light = homography_sequence(image, "light", frames=6).frames
+    assert all(a > b for a, b in zip(light.mean((1, 2)), light.mean((1, 2))[1:], strict=False))
+    jpeg = homography_sequence(image, "jpeg", frames=6).frames
+    none = homography_sequence(image, "none", frames=6).frames
+    assert np.abs(jpeg[-1] - none[-1]).mean() > 2 * np.abs(jpeg[0] - none[0]).mean()
+
+
+def test_bad_input():
+    with pytest.raises(InputError, match="unknown homography condition"):
+        homography_sequence(_image(), "rain")
+    with pytest.raises(InputError, match="gray"):
+        homography_sequence(np.zeros((40, 40, 3)), "blur")
+    with pytest.raises(InputError, match="2 frames"):
+        homography_sequence(_image(), "blur", frames=1)
+    with pytest.raises(InputError, match=r"\(P, 2\)"):
+        homography_sequence(_image(), "none", frames=2).track(np.zeros((3, 3)))
