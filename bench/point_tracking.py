@@ -23,6 +23,8 @@ then ``--repeats`` times (default 3) with the methods taking turns; the best tim
 ``ccot_compiled``: ``ccot`` with its per-frame step through ``torch.compile`` (compiled during the warm-up).
 ``--methods ... ccot_ort`` adds the deployment runtime's tracker (``runtime.tracking``: the exported ``ccot`` graphs
 in onnxruntime with ``--threads`` threads) on ``--bundle DIR`` or a bundle exported into a temporary folder.
+``--tracker KEY=JSON ...`` sets arguments of the DCF trackers (:class:`~models.tracking.PointTracker`, e.g.
+``noise_reg=0``); the JSON echoes them under ``tracker``.
 
     python -m bench.point_tracking --sintel ../shared/data/sintel/alley_1/clean --synthetic --json \
         --plot docs/figures/point_tracking.png
@@ -44,7 +46,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from core.errors import InputError
 from core.frames import read_frame_gray
+from core.settings import parse_tracker
 from core.threads import cpu_threads
 from data.flow import (
     HOMOGRAPHY_CONDITIONS,
@@ -61,7 +65,7 @@ from models.tracking.klt import klt_track
 METHODS = ("ccot", "ccot_ff", "mosse", "klt")
 COMPILED = "ccot_compiled"  # ccot with its step through torch.compile (--compile)
 ORT = "ccot_ort"  # the runtime's tracker on a ccot bundle (onnxruntime)
-_TRACKERS: dict[tuple[str, str], PointTracker] = {}
+_TRACKERS: dict[tuple, PointTracker] = {}
 _ORT_TRACKERS: dict[tuple[str | None, int], object] = {}
 THRESHOLDS = (1, 2, 3)
 
@@ -144,14 +148,25 @@ def run_klt(frames: np.ndarray, points: np.ndarray, device: str = "cpu") -> tupl
     return tracks[-1], lost[-1], timer() - start
 
 
-def run_dcf(method: str, frames: np.ndarray, points: np.ndarray, device: str = "cpu", compile: bool = False):
-    """Our tracker; returns last positions, lost flags and seconds spent tracking (frames already in
-    memory). ``compile``: the per-frame step through ``torch.compile`` (compiled in the warm-up run: one tracker
-    per method and device serves every run)."""
-    key = (method, device)
+def dcf_tracker(method: str, device: str = "cpu", settings: dict | None = None) -> PointTracker:
+    """``PointTracker(method, **settings)`` on ``device``, made once per (method, device, settings); an unknown
+    or invalid setting is an ``InputError``."""
+    settings = settings or {}
+    key = (method, device, json.dumps(settings, sort_keys=True))
     if key not in _TRACKERS:
-        _TRACKERS[key] = PointTracker(method).to(device)
-    tracker = _TRACKERS[key]
+        try:
+            _TRACKERS[key] = PointTracker(method, **settings).to(device)
+        except TypeError as err:
+            raise InputError(f"--tracker: {err}") from err
+    return _TRACKERS[key]
+
+
+def run_dcf(method: str, frames: np.ndarray, points: np.ndarray, device: str = "cpu", compile: bool = False,
+            settings: dict | None = None):
+    """Our tracker (:func:`dcf_tracker`); returns last positions, lost flags and seconds spent tracking (frames
+    already in memory). ``compile``: the per-frame step through ``torch.compile`` (compiled in the warm-up run:
+    one tracker per method, device and settings serves every run)."""
+    tracker = dcf_tracker(method, device, settings)
     tensors = [torch.from_numpy(f.astype(np.float32)).to(device) for f in frames]
     pts = torch.from_numpy(points.astype(np.float32)).to(device)
     timer = clock(device)
@@ -204,20 +219,21 @@ def metrics(pred: np.ndarray, lost: np.ndarray, data: Dataset, seconds: float) -
 
 
 def run_method(method: str, frames: np.ndarray, points: np.ndarray, device: str = "cpu",
-               bundle: str | Path | None = None):
-    """One run of ``method`` (a DCF variant, ``ccot_compiled``, ``ccot_ort`` on ``bundle`` or ``klt``): last
-    positions, lost, seconds."""
+               bundle: str | Path | None = None, settings: dict | None = None):
+    """One run of ``method`` (a DCF variant with ``settings``, ``ccot_compiled``, ``ccot_ort`` on ``bundle`` or
+    ``klt``): last positions, lost, seconds."""
     if method == "klt":
         return run_klt(frames, points, device)
     if method == ORT:
         return run_ort(frames, points, bundle, torch.get_num_threads())
     compiled = method == COMPILED
-    return run_dcf("ccot" if compiled else method, frames, points, device, compile=compiled)
+    return run_dcf("ccot" if compiled else method, frames, points, device, compiled, settings)
 
 
 def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu", repeats: int = 3,
-             bundle: str | Path | None = None) -> dict:
-    """Run every method on every dataset; one result dict per method (with per-point EPEs under ``epe``).
+             bundle: str | Path | None = None, settings: dict | None = None) -> dict:
+    """Run every method on every dataset; one result dict per method (with per-point EPEs under ``epe``);
+    ``settings``: keyword arguments of every DCF tracker (:class:`PointTracker`).
 
     Each method first runs once on the first two frames (warm-up: one-time start-up costs; its wall time,
     tracker construction and any compilation included, is ``first_call_s``, meaningful for the first dataset), then
@@ -228,13 +244,13 @@ def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu",
         first_call = {}
         for method in methods:
             start = time.perf_counter()
-            run_method(method, data.frames[:2], data.points, device, bundle)
+            run_method(method, data.frames[:2], data.points, device, bundle, settings)
             first_call[method] = time.perf_counter() - start
         seconds = {method: [] for method in methods}
         last = {}
         for _ in range(repeats):
             for method in methods:
-                *last[method], elapsed = run_method(method, data.frames, data.points, device, bundle)
+                *last[method], elapsed = run_method(method, data.frames, data.points, device, bundle, settings)
                 seconds[method].append(elapsed)
         results = {method: metrics(*last[method], data, min(seconds[method])) for method in methods}
         for method, m in results.items():
@@ -414,6 +430,9 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help=f"also run ccot with its step through torch.compile ({COMPILED}; compiled in the warm-up)",
     )
+    parser.add_argument("--tracker", nargs="+", metavar="KEY=JSON",
+                        help="settings of the DCF trackers (PointTracker arguments), e.g. noise_reg=0 "
+                             f"'patch_size=[31,15,15,15]'; not of {ORT}, which runs its bundle's")
     parser.add_argument("--device", default="cpu", help="torch device for the DCF trackers")
     parser.add_argument(
         "--threads",
@@ -432,6 +451,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.repeats < 1:
         parser.error("--repeats must be at least 1")
+    settings = parse_tracker(args.tracker)
     with cpu_threads(args.threads):
         datasets = {}
         for folder in args.sintel:
@@ -449,7 +469,7 @@ def main(argv: list[str] | None = None) -> int:
                 condition, args.frames, args.points, args.seed, args.spacing
             )
         methods = [*args.methods, *([COMPILED] if args.compile else [])]
-        result = evaluate(datasets, methods, args.device, args.repeats, args.bundle)
+        result = evaluate(datasets, methods, args.device, args.repeats, args.bundle, settings)
     if args.plot:
         plot(result, args.plot)
     for ds in result.values():
@@ -458,7 +478,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         clock_name = "process_cpu_time" if args.device == "cpu" else "wall"
         print(json.dumps({"datasets": result, "device": args.device, "threads": args.threads, "clock": clock_name,
-                          "timing": f"best of {args.repeats} runs"}))
+                          "timing": f"best of {args.repeats} runs", "tracker": settings}))
     else:
         print(table(result))
     return 0

@@ -40,6 +40,7 @@ from pathlib import Path
 import torch
 
 from core.errors import InputError
+from core.settings import parse_tracker
 from core.threads import set_cpu_threads
 from data.vos.composite_datamodule import EVAL_SETS, held_out_composites, lookalike_videos
 from data.vos.davis import davis_sequences, load_davis_videos
@@ -173,20 +174,6 @@ def load_videos(args: argparse.Namespace) -> tuple[str, list[tuple[str, torch.Te
     return name, videos
 
 
-def parse_tracker(items: list[str] | None) -> dict:
-    """``["channels=32", "update_schedule=[5]"]`` -> ``{"channels": 32, "update_schedule": [5]}``."""
-    out = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        try:
-            if not sep:
-                raise ValueError("no '='")
-            out[key] = json.loads(value)
-        except ValueError as err:  # JSONDecodeError is a ValueError
-            raise InputError(f"--tracker item {item!r} is not KEY=JSON ({err})") from err
-    return out
-
-
 def parse_extra(items: list[str] | None) -> dict[str, str]:
     """``["davos_hard_loss=a.ckpt"]`` -> ``{"davos_hard_loss": "a.ckpt"}``."""
     out = {}
@@ -213,7 +200,7 @@ def frtm_model(args: argparse.Namespace) -> FRTMSegmentation:
 
 def trackers(args: argparse.Namespace, methods: list[str]) -> tuple[dict[str, Callable | None], dict]:
     """Tracker factories of ``methods`` (None for ``first_frame_copy``) and a description of the models used."""
-    davos = parse_tracker(args.davos_tracker)
+    davos = parse_tracker(args.davos_tracker, "--davos-tracker")
     ckpts = {"davos": args.davos_ckpt, "davos_no_wta": args.davos_ckpt, "lwl": args.lwl_ckpt,
              **parse_extra(args.extra)}
     out: dict[str, Callable | None] = {}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Mapping
 from typing import TypeVar
 
@@ -35,3 +36,18 @@ class SettingsMixin:
     def to_dict(self) -> dict[str, object]:
         """JSON-ready mapping (tuples become lists)."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+
+
+def parse_tracker(items: list[str] | None, option: str = "--tracker") -> dict:
+    """Settings given on a command line as ``KEY=JSON`` items (``option`` names the flag in errors):
+    ``["channels=32", "update_schedule=[5]"]`` -> ``{"channels": 32, "update_schedule": [5]}``."""
+    out = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError("no '='")
+            out[key] = json.loads(value)
+        except ValueError as err:  # JSONDecodeError is a ValueError
+            raise InputError(f"{option} item {item!r} is not KEY=JSON ({err})") from err
+    return out

@@ -113,7 +113,8 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                    "max_points": MAX_POINTS, "levels": tracker.levels},
             normalisation={"gray": "cv2.IMREAD_GRAYSCALE", "scale": 1.0},
             thresholds={"psr_threshold": tracker.psr_threshold, "psr_relative": tracker.psr_relative,
-                        "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta},
+                        "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
+                        "noise_reg": tracker.noise_reg},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
                       "good_features": {"quality": 0.01, "min_distance": 5}})
     return Path(out)

@@ -91,6 +91,22 @@ def test_homography_rows_per_image_and_condition(tmp_path, capsys):
         point_tracking.main(["--homography", str(tmp_path / "missing.png"), "--json"])
 
 
+def test_tracker_settings_reach_the_dcf_trackers(capsys):
+    """``--tracker`` sets PointTracker arguments (here one that changes the tracks); an unknown one is refused."""
+    base = ["--synthetic", "--frames", "4", "--points", "80", "--methods", "ccot", "--repeats", "1", "--json"]
+    runs = []
+    for extra in ([], ["--tracker", "patch_size=[31,15,15,15]", "noise_reg=0"]):
+        assert point_tracking.main(base + extra) == 0
+        runs.append(json.loads(capsys.readouterr().out))
+    assert runs[0]["tracker"] == {} and runs[1]["tracker"] == {"patch_size": [31, 15, 15, 15], "noise_reg": 0}
+    epe = [r["datasets"]["synthetic"]["methods"]["ccot"]["epe_mean"] for r in runs]
+    assert epe[0] != epe[1]
+    from core.errors import InputError
+
+    with pytest.raises(InputError, match="colour"):
+        point_tracking.main(base + ["--tracker", "colour=1"])
+
+
 @pytest.mark.slow  # uses an exported bundle
 def test_runtime_tracker_is_a_method(tracking_bundle, capsys):
     assert point_tracking.main(["--synthetic", "--frames", "4", "--points", "40", "--repeats", "1", "--methods",
