@@ -103,12 +103,17 @@ def sintel_dataset(folder: str | Path, n_points: int, spacing: int = 3) -> Datas
     return Dataset(frames, points, tracks[-1], valid[-1])
 
 
-def synthetic_dataset(n_frames: int, n_points: int, seed: int = 0, spacing: int = 3) -> Dataset:
-    """Synthetic sequence (large motion, blur, noise, brightness change), ground truth at the last frame."""
-    seq = synthetic_sequence(frames=n_frames, seed=seed)
+def _tracked(seq, n_points: int, spacing: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A generated sequence's frames as uint8 ``(T, H, W)``, start points detected in frame 0 and their ground
+    truth (``seq.track``): frames, points, tracks ``(T, P, 2)``, valid ``(T, P)``."""
     frames = seq.frames.round().clip(0, 255).astype(np.uint8)
     points = detect(frames[0], n_points, spacing)
-    tracks, valid = seq.track(points)
+    return frames, points, *seq.track(points)
+
+
+def synthetic_dataset(n_frames: int, n_points: int, seed: int = 0, spacing: int = 3) -> Dataset:
+    """Synthetic sequence (large motion, blur, noise, brightness change), ground truth at the last frame."""
+    frames, points, tracks, valid = _tracked(synthetic_sequence(frames=n_frames, seed=seed), n_points, spacing)
     return Dataset(frames, points, tracks[-1], valid[-1])
 
 
@@ -116,9 +121,7 @@ def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0, 
     """The synthetic sequence under one stress condition (:mod:`data.flow.stress`), ground truth at the last
     frame."""
     seq = stress_sequence(condition, frames=n_frames, seed=seed)
-    frames = seq.frames.round().clip(0, 255).astype(np.uint8)
-    points = detect(frames[0], n_points, spacing)
-    tracks, valid = seq.track(points)
+    frames, points, tracks, valid = _tracked(seq, n_points, spacing)
     occluded = seq.hidden(tracks).any(0) if seq.occluder is not None else None
     return Dataset(frames, points, tracks[-1], valid[-1], occluded)
 
@@ -128,9 +131,7 @@ def homography_dataset(image: str | Path, condition: str, n_points: int, seed: i
     """A real photograph (read as gray) through ``frames`` chained homographies under ``condition``
     (:func:`data.flow.homography_sequence`), ground truth at the last frame."""
     seq = homography_sequence(read_frame_gray(image), condition, frames, seed)
-    frames_u8 = seq.frames.round().clip(0, 255).astype(np.uint8)
-    points = detect(frames_u8[0], n_points, spacing)
-    tracks, valid = seq.track(points)
+    frames_u8, points, tracks, valid = _tracked(seq, n_points, spacing)
     return Dataset(frames_u8, points, tracks[-1], valid[-1])
 
 

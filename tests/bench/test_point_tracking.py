@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bench import point_tracking
+from core.errors import InputError
 
 
 def test_json_schema_and_plot(tmp_path, capsys):
@@ -85,8 +86,6 @@ def test_homography_rows_per_image_and_condition(tmp_path, capsys):
     assert set(result) == {f"homography_{c}_{f}_img" for c in ("blur", "none") for f in ("a", "b")}
     for row in result.values():
         assert row["frames"] == 6 and 0 < row["evaluated_points"] <= row["points"] <= 40
-    from core.errors import InputError
-
     with pytest.raises(InputError, match="missing.png"):
         point_tracking.main(["--homography", str(tmp_path / "missing.png"), "--json"])
 
@@ -101,8 +100,6 @@ def test_tracker_settings_reach_the_dcf_trackers(capsys):
     assert runs[0]["tracker"] == {} and runs[1]["tracker"] == {"patch_size": [31, 15, 15, 15], "noise_reg": 0}
     epe = [r["datasets"]["synthetic"]["methods"]["ccot"]["epe_mean"] for r in runs]
     assert epe[0] != epe[1]
-    from core.errors import InputError
-
     with pytest.raises(InputError, match="colour"):
         point_tracking.main(base + ["--tracker", "colour=1"])
 
