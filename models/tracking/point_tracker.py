@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -45,6 +45,7 @@ from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, ga
 from models.dcf._signal import full_frequencies
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
+from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 
 METHODS = ("ccot", "ccot_ff", "mosse")
@@ -134,13 +135,17 @@ class TrackerState:
     """Tracker state: the last frame ``(1, 1, H, W)``, positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)``
     and per pyramid level (finest first) the filters ``(3, 2M + 1, P, M + 1)``: real and imaginary parts of the
     numerators ``A`` and the denominators ``B`` of the level's band-limited half spectra (``M`` = the level's
-    band), point-interleaved."""
+    band), point-interleaved. With blur matching, ``reference`` is the radial power profile ``(1, 3, bins)``
+    (:func:`~models.tracking.blur.radial_power_profile`) of the frame the filters were last trained afresh on and
+    ``profile`` that of ``frame`` (None: not measured yet)."""
 
     frame: Tensor
     positions: Tensor
     lost: Tensor
     psr: Tensor
     filters: tuple[Tensor, ...]
+    reference: Tensor | None = None
+    profile: Tensor | None = None
 
 
 class PointTracker(nn.Module):
@@ -167,6 +172,8 @@ class PointTracker(nn.Module):
         ``noise_reg`` times the expected power of the frame's noise in every frequency of the point's
         normalised sample (:meth:`_noise_power`), so frequencies where a blurred, dark or low-contrast patch
         has less signal than noise do not steer the peak (a Wiener filter's regulariser, over-weighted).
+        blur_match: blur variance (px^2) between a frame and the frame the filters were trained on above which
+        the two are matched before the search (:meth:`step`); None: never.
     """
 
     def __init__(
@@ -184,6 +191,7 @@ class PointTracker(nn.Module):
         psr_exclude: int = 7,
         band: float | tuple[float, ...] = 0.7,
         noise_reg: float = 30.0,
+        blur_match: float | None = 2.0,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -199,6 +207,9 @@ class PointTracker(nn.Module):
         if not noise_reg >= 0:
             raise InputError(f"noise_reg must be a non-negative number, got {noise_reg}")
         self.noise_reg = noise_reg
+        if blur_match is not None and not blur_match > 0:
+            raise InputError(f"blur_match must be a positive variance in px^2 or None, got {blur_match}")
+        self.blur_match = blur_match
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
@@ -428,8 +439,46 @@ class PointTracker(nn.Module):
         ``torch.compile`` (see :meth:`track`)."""
         forward = self._compiled() if compile else self
         frame = self._frame(frame)
+        if self.blur_match is None:
+            return self._advance(forward, frame, state)
+        return self._blur_matched_step(forward, frame, state)
+
+    @staticmethod
+    def _advance(forward, frame: Tensor, state: TrackerState) -> TrackerState:
+        """One :meth:`forward` (or its compiled form) from ``state`` into ``frame`` ``(1, 1, H, W)``."""
         positions, lost, psr, *filters = forward(frame, state.frame, state.positions, state.lost, *state.filters)
         return TrackerState(frame, positions, lost, psr, tuple(filters))
+
+    def _retrained(self, frame: Tensor, state: TrackerState) -> TrackerState:
+        """``state`` with every point's filters trained afresh on ``frame`` ``(1, 1, H, W)`` at its positions (lost
+        points stay lost)."""
+        fresh = self.init(frame[0, 0], state.positions)
+        return replace(fresh, lost=fresh.lost | state.lost, psr=state.psr)
+
+    def _blur_matched_step(self, forward, frame: Tensor, state: TrackerState) -> TrackerState:
+        """:meth:`forward` with the frame and the filters brought to one blur level (``blur_match``).
+
+        The blur of ``frame`` relative to the frame the filters were last trained afresh on is measured from
+        their radial power spectra (:func:`~models.tracking.blur.relative_blur`). Within ``blur_match`` px^2 the
+        step is the plain one. A blurrier frame (defocus or motion blur setting in) has the filters retrained on
+        the previous frame blurred by the measured difference, then searched; a sharper one (blur wearing off)
+        is searched as a copy blurred to the filters' level, then the filters are retrained on it as it is. Either
+        way the sample memory restarts, at this frame's blur."""
+        previous = radial_power_profile(state.frame) if state.profile is None else state.profile
+        reference = previous if state.reference is None else state.reference
+        profile = radial_power_profile(frame)
+        change = float(relative_blur(reference, profile))
+        if change > self.blur_match:
+            step_blur = max(float(relative_blur(previous, profile)), 0.0)
+            new = self._advance(forward, frame, self._retrained(gaussian_blur(state.frame, step_blur), state))
+            reference = profile
+        elif change < -self.blur_match:
+            searched = self._advance(forward, gaussian_blur(frame, -change), state)
+            new = self._retrained(frame, searched)
+            reference = profile
+        else:
+            new = self._advance(forward, frame, state)
+        return replace(new, reference=reference, profile=profile)
 
     def _compiled(self):
         """:meth:`forward` compiled by ``torch.compile`` for fixed shapes (made once per tracker)."""

@@ -1,0 +1,122 @@
+"""How much blurrier one frame is than another, from their power spectra, and blurring a frame to match.
+
+A template matched against a blurrier view of itself is biased wherever the structure around a point is not
+symmetric: the window that cuts the patch out weights the blurred structure differently from the sharp one, so
+the correlation peak moves. Frame-to-frame tracking through a growing defocus accumulates that bias (about 0.3
+px per frame at a 4 px blur). Blurring the sharper of the two views to the other's level removes it; this module
+measures the level.
+
+The measure compares radial power profiles. A Gaussian blur of variance ``s`` (px^2) multiplies the power at
+angular frequency ``w`` by ``exp(-s |w|^2)``, so where both frames' power is well above their white noise,
+``log(P_b / P_a)`` is a line in ``|w|^2``: the slope is ``-s`` and the intercept absorbs a change of contrast or
+brightness. Translation does not change the power spectrum, and small rotations and scale changes move it
+little, so the frames need not be aligned.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from kornia.filters import gaussian_blur2d
+from torch import Tensor, nn
+
+from core.errors import InputError
+from models.dcf.noise import image_noise_std
+
+_MIN_BINS = 3  # fitted bins below which a comparison says "no change"
+
+
+def _check_images(image: Tensor, name: str) -> None:
+    if image.dim() != 4 or image.shape[1] != 1 or min(image.shape[-2:]) < 8:
+        raise InputError(f"{name} needs (B, 1, H, W) gray images with H, W >= 8, got {tuple(image.shape)}")
+
+
+def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4) -> Tensor:
+    """Radial power profile of Hann-windowed, mean-free images.
+
+    Args:
+        image: ``(B, 1, H, W)`` gray images, ``H, W >= 8``. bins: rings of equal width in ``|w|`` from 0 to
+        ``pi`` rad/px (frequencies beyond ``pi``, the spectrum's corners, are left out). noise_stride: pixel
+        stride of the noise estimate (:func:`~models.dcf.image_noise_std`).
+    Returns:
+        ``(B, 3, bins)``: per ring the mean power, the power of the images' white noise (its variance, at
+        least the 8-bit rounding's 1/12, times the window's energy) and the mean ``|w|^2`` (rad^2/px^2).
+    """
+    _check_images(image, "radial_power_profile")
+    if bins < _MIN_BINS:
+        raise InputError(f"a radial power profile needs at least {_MIN_BINS} bins, got {bins}")
+    h, w = image.shape[-2:]
+    window = torch.hann_window(h, periodic=False, dtype=image.dtype, device=image.device)[:, None] * torch.hann_window(
+        w, periodic=False, dtype=image.dtype, device=image.device
+    )
+    mean = (image * window).sum((-2, -1), keepdim=True) / window.sum()
+    spectrum = torch.fft.rfft2((image - mean) * window)[:, 0]
+    power = (spectrum.real.square() + spectrum.imag.square()).flatten(1)  # (B, H (W // 2 + 1))
+    wy = torch.fft.fftfreq(h, dtype=image.dtype, device=image.device)[:, None] * (2 * math.pi)
+    wx = torch.fft.rfftfreq(w, dtype=image.dtype, device=image.device) * (2 * math.pi)
+    radius2 = (wy.square() + wx.square()).flatten()
+    ring = (radius2.sqrt() * (bins / math.pi)).long()
+    inside = (ring < bins).to(image.dtype)
+    ring = ring.clamp_max(bins - 1)
+    zeros = torch.zeros(power.shape[0], bins, dtype=image.dtype, device=image.device)
+    count = zeros[0].index_add(0, ring, inside).clamp_min(1)
+    ring_power = zeros.index_add(1, ring, power * inside) / count
+    ring_radius2 = zeros[0].index_add(0, ring, radius2 * inside) / count
+    noise = image_noise_std(image, noise_stride).square().clamp_min(1 / 12) * window.square().sum()
+    return torch.stack([ring_power, noise[:, None].expand_as(ring_power), ring_radius2.expand_as(ring_power)], 1)
+
+
+def relative_blur(reference: Tensor, profile: Tensor, snr: float = 4.0) -> Tensor:
+    """Variance ``s`` (px^2) of the Gaussian blur that takes the reference frames to the others.
+
+    A least-squares line ``log((P - N) / (P_ref - N_ref)) = c - s |w|^2`` over the rings where both noise-free
+    powers exceed ``snr`` times the noise power (:func:`radial_power_profile`); ``s`` is 0 when fewer than 3
+    rings qualify (nothing to compare, e.g. flat frames).
+
+    Args:
+        reference, profile: ``(B, 3, bins)`` radial power profiles of frames of equal size.
+    Returns:
+        ``(B,)``: positive where ``profile``'s frame is blurrier, negative where it is sharper.
+    """
+    if reference.shape != profile.shape or reference.dim() != 3 or reference.shape[1] != 3:
+        raise InputError(
+            f"relative_blur needs two (B, 3, bins) radial power profiles of one shape, got {tuple(reference.shape)} "
+            f"and {tuple(profile.shape)}"
+        )
+    signal_ref, signal = reference[:, 0] - reference[:, 1], profile[:, 0] - profile[:, 1]
+    used = (signal_ref > snr * reference[:, 1]) & (signal > snr * profile[:, 1])
+    weight = used.to(profile.dtype)
+    x = profile[:, 2]
+    one = torch.ones_like(signal)
+    y = torch.log(torch.where(used, signal, one) / torch.where(used, signal_ref, one))
+    n, sx, sy = weight.sum(1), (weight * x).sum(1), (weight * y).sum(1)
+    sxx, sxy = (weight * x * x).sum(1), (weight * x * y).sum(1)
+    spread = n * sxx - sx * sx
+    slope = (n * sxy - sx * sy) / torch.where(spread > 0, spread, torch.ones_like(spread))
+    return torch.where((n >= _MIN_BINS) & (spread > 0), -slope, torch.zeros_like(slope))
+
+
+def gaussian_blur(image: Tensor, variance: float) -> Tensor:
+    """``image`` ``(B, 1, H, W)`` blurred by a Gaussian of ``variance`` px^2 (``kornia.filters.gaussian_blur2d``
+    with OpenCV's kernel size for float images, ``2 round(4 sigma) + 1``, and reflected borders, so that
+    ``cv2.GaussianBlur`` gives the same values); a variance of 0 returns the image."""
+    if not variance >= 0:
+        raise InputError(f"a blur variance must be a non-negative number, got {variance}")
+    if variance == 0:
+        return image
+    sigma = math.sqrt(variance)
+    size = min(int(round(sigma * 8 + 1)) | 1, 2 * min(image.shape[-2:]) - 1)  # reflection needs a smaller pad
+    sigmas = torch.tensor([[sigma, sigma]], dtype=image.dtype, device=image.device)
+    return gaussian_blur2d(image, size, sigmas, border_type="reflect")
+
+
+class RadialPowerProfile(nn.Module):
+    """Module form of :func:`radial_power_profile`: ``(B, 1, H, W)`` -> ``(B, 3, bins)``."""
+
+    def __init__(self, bins: int = 64, noise_stride: int = 4) -> None:
+        super().__init__()
+        self.bins, self.noise_stride = bins, noise_stride
+
+    def forward(self, image: Tensor) -> Tensor:
+        return radial_power_profile(image, self.bins, self.noise_stride)
