@@ -56,6 +56,7 @@ DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
 _PYRDOWN_TAPS = (1.0, 5.0, 10.0, 10.0, 5.0, 1.0)
 # the variance of white noise after one pyramid level: the squared taps summed, over both axes
 _PYRDOWN_NOISE_GAIN = (sum(t * t for t in _PYRDOWN_TAPS) / sum(_PYRDOWN_TAPS) ** 2) ** 2
+_SEARCH_SIGMA = 3.0  # px: the default displacement prior of the fine levels (PointTracker's search_sigma)
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
 
 
@@ -160,6 +161,13 @@ class PointTracker(nn.Module):
         reg_rel: regulariser relative to the mean sample energy (``beta^2`` / ``eps``).
         newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
         level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
+        search_sigma: per level (finest first), the std in px of that level of a Gaussian displacement prior
+        that weights the level's score map around the estimate handed down from the coarser levels before its
+        peak is taken; 0 searches the whole map. The coarser levels have placed a point within about a pixel of
+        theirs (2 px of the next finer level), so a far peak at a fine level is more often a response to noise,
+        compression blocks or a neighbouring structure than a correction; the weighting keeps such peaks from
+        pulling the point away. The PSR is taken on the unweighted level-0 map. None: 3 px at the two finest
+        levels, free search at the others (the large motion is found there).
         psr_relative, fb_threshold, psr_threshold: a point is lost when its level-0 PSR falls below
         ``psr_relative`` times the geometric mean PSR of the frame's tracked points (:meth:`_lost_threshold`)
         and tracking it back to the previous frame misses by more than ``fb_threshold`` px
@@ -185,6 +193,7 @@ class PointTracker(nn.Module):
         eta: float | None = None,
         reg_rel: float = 1e-2,
         newton_iterations: int | tuple[int, ...] = (2, 0, 0, 0),
+        search_sigma: float | tuple[float, ...] | None = None,
         psr_threshold: float = 2.5,
         psr_relative: float = 0.3,
         fb_threshold: float | None = 1.0,
@@ -200,6 +209,11 @@ class PointTracker(nn.Module):
         if any(n % 2 == 0 for n in self.sizes) or self.sizes[0] < psr_exclude + 2:
             raise InputError(f"patch sizes must be odd and larger than the PSR window, got {self.sizes}")
         self.newton = (0,) * levels if method == "mosse" else _per_level(newton_iterations, levels, "newton")
+        if search_sigma is None:  # the two finest levels, never the coarsest
+            search_sigma = tuple(_SEARCH_SIGMA if lv < min(2, levels - 1) else 0.0 for lv in range(levels))
+        self.search_sigmas = _per_level(search_sigma, levels, "search_sigma", float)
+        if not all(s >= 0 for s in self.search_sigmas):
+            raise InputError(f"search_sigma must be non-negative (0: free search), got {self.search_sigmas}")
         self.method, self.levels = method, levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
@@ -237,6 +251,10 @@ class PointTracker(nn.Module):
             omega = band_frequencies(n, m, False) * (2 * math.pi / n)  # angular frequencies of the rows, per px
             self.register_buffer(f"omega_y_{level}", omega[:, None].float(), persistent=False)  # (2M + 1, 1)
             self.register_buffer(f"omega_x_{level}", omega[: m + 1].float(), persistent=False)  # (M + 1,)
+            if self.search_sigmas[level] > 0:  # the displacement prior over the score map, FFT order (N, 1, N)
+                shift = band_frequencies(n, n // 2, False).float()  # signed shifts 0, 1, .., -1 of an N-map
+                prior = torch.exp(-(shift[:, None].square() + shift.square()) / (2 * self.search_sigmas[level] ** 2))
+                self.register_buffer(f"search_prior_{level}", prior[:, None, :], persistent=False)
 
     def _sample(self, image: Tensor, centres: Tensor, level: int) -> tuple[Tensor, Tensor, Tensor]:
         """Band-limited spectrum (real, imaginary ``(2M + 1, P, M + 1)``) of the normalised (zero mean, unit
@@ -358,11 +376,15 @@ class PointTracker(nn.Module):
             zr, zi, std = self._sample(pyramid[level], centre, level)
             spectrum = self._response(filters[level], zr, zi, self._noise_power(noise, std, level), level)
             score = self.dfts[level].inverse(spectrum)  # (N, P, N)
-            argmax = interleaved_argmax(score)
+            if level == 0:  # the PSR judges the unweighted map
+                raw_score, raw_argmax = score, interleaved_argmax(score)
+            if self.search_sigmas[level] > 0:
+                score = score * getattr(self, f"search_prior_{level}")
+            argmax = raw_argmax if level == 0 and self.search_sigmas[0] == 0 else interleaved_argmax(score)
             d = d + 2**level * self._peak(spectrum, score, argmax, level)
             spectra.insert(0, (zr, zi))
             centres.insert(0, centre)
-        psr = interleaved_psr(score, self.psr_exclude, argmax)
+        psr = interleaved_psr(raw_score, self.psr_exclude, raw_argmax)
         moved = start + d
         # Training samples at the new positions: the search samples shifted in the Fourier domain (as C-COT
         # centres its samples on the target), cheaper than extracting again and at least as accurate. Level 0's
