@@ -13,6 +13,10 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   ``lost`` and the filters -> ``positions_out``, ``lost_out``, ``psr`` and ``filters_l_out``: one
   :meth:`PointTracker.forward` (one Gather per level for the patches, matrix products for the small DFTs, a fixed
   number of Newton iterations).
+- ``profile.onnx``: ``frame`` -> ``profile`` (1, 3, bins), its radial power profile, and ``relative_blur.onnx``:
+  ``reference``, ``profile`` -> ``blur`` (1,) px^2 (:mod:`models.tracking.blur`): the blur matching of
+  :meth:`PointTracker.step`, whose branches (retrain on a blurred previous frame, search a blurred copy) the
+  runtime takes in numpy with ``cv2.GaussianBlur``; ``thresholds.blur_match_px2`` in the manifest (null: off).
 
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
 difference and the lost flags that differ.
@@ -32,6 +36,7 @@ from core.errors import InputError
 from export.bundle import staged_bundle
 from export.onnx import OPSET, export_onnx
 from models.tracking import PointTracker
+from models.tracking.blur import RadialPowerProfile, gaussian_blur, relative_blur
 from models.tracking.point_tracker import METHODS
 from runtime.bundle import write_manifest
 from runtime.tracking import OnnxPointTracker
@@ -58,6 +63,13 @@ class InitGraph(nn.Module):
     def forward(self, frame: Tensor, points: Tensor) -> tuple[Tensor, ...]:
         state = self.tracker.init(frame, points)
         return state.positions, state.lost, state.psr, *state.filters
+
+
+class RelativeBlurGraph(nn.Module):
+    """:func:`~models.tracking.blur.relative_blur`: reference, profile (1, 3, bins) -> blur (1,) px^2."""
+
+    def forward(self, reference: Tensor, profile: Tensor) -> Tensor:
+        return relative_blur(reference, profile)
 
 
 def example_inputs(tracker: PointTracker, height: int, width: int, points: int, seed: int = 0):
@@ -97,8 +109,23 @@ def export_tracking_init(path: str | Path, tracker: PointTracker, height: int = 
                            dynamic_shapes=({2: h, 3: w}, {0: p}))
 
 
+def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, width: int = 320) -> None:
+    """Export ``profile.onnx`` (dynamic H, W) and ``relative_blur.onnx`` into ``folder`` (example frames of
+    ``tracker``'s :func:`example_inputs`)."""
+    frame = example_inputs(tracker, height, width, 2)[0]
+    h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
+    profiler = RadialPowerProfile()
+    with torch.no_grad():
+        export_onnx(profiler, (frame,), folder / "profile.onnx", ["frame"], ["profile"], dynamic_shapes=({2: h, 3: w},))
+        # two distinct example tensors: the exporter would merge one tensor passed twice into one input
+        reference, profile = profiler(frame), profiler(gaussian_blur(frame, 2.0))
+        export_onnx(RelativeBlurGraph(), (reference, profile), folder / "relative_blur.onnx", ["reference", "profile"],
+                    ["blur"])
+
+
 def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, width: int = 320) -> Path:
-    """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``bundle.json``)."""
+    """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``profile.onnx``,
+    ``relative_blur.onnx``, ``bundle.json``)."""
     if method not in METHODS:
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
     if not (MIN_SIZE <= height <= MAX_SIZE and MIN_SIZE <= width <= MAX_SIZE):
@@ -107,6 +134,7 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
     with staged_bundle(out) as folder:
         export_tracking_init(folder / "init.onnx", tracker, height, width)
         export_tracking_step(folder / "step.onnx", tracker, height, width)
+        export_blur_graphs(folder, tracker, height, width)
         write_manifest(
             folder, "tracking", OPSET,
             input={"frame": "(1, 1, H, W) gray float32 in [0, 255]", "min_size": MIN_SIZE, "max_size": MAX_SIZE,
@@ -114,8 +142,9 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
             normalisation={"gray": "cv2.IMREAD_GRAYSCALE", "scale": 1.0},
             thresholds={"psr_threshold": tracker.psr_threshold, "psr_relative": tracker.psr_relative,
                         "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
-                        "noise_reg": tracker.noise_reg},
+                        "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
+                      "search_sigmas": list(tracker.search_sigmas),
                       "good_features": {"quality": 0.01, "min_distance": 5}})
     return Path(out)
 

@@ -6,8 +6,11 @@
 Start points come from a file or from OpenCV's good features to track (Shi-Tomasi) in the first frame; the
 bundle's ``init`` graph trains every point's filters on it, then its ``step`` graph tracks all points into each
 next frame (pyramid, coarse-to-fine correlation, lost flags and filter updates inside the graph; the filters are
-numpy state between the calls). The tracks file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2),
-``lost`` (T, P), ``psr`` (T, P), the start ``points``, ``method`` and ``frames``.
+numpy state between the calls). Blur matching as in ``PointTracker.step``: the ``profile`` and ``relative_blur``
+graphs measure how much blurrier each frame is than the one the filters were last trained afresh on, and beyond
+the bundle's ``blur_match_px2`` the sharper view is blurred (``cv2.GaussianBlur``) before the search. The tracks
+file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
+``points``, ``method`` and ``frames``.
 """
 
 from __future__ import annotations
@@ -52,6 +55,8 @@ class OnnxPointTracker:
         size = self.bundle.section("input")
         self.min_size, self.max_size = int(size["min_size"]), int(size["max_size"])
         self.init_graph, self.step_graph = self.bundle.graph("init"), self.bundle.graph("step")
+        self.blur_match = self.bundle.section("thresholds").get("blur_match_px2")
+        self.profile_graph, self.relative_graph = self.bundle.graph("profile"), self.bundle.graph("relative_blur")
 
     def _frame(self, frame: np.ndarray, index: int) -> np.ndarray:
         frame = np.asarray(frame, np.float32)
@@ -76,10 +81,17 @@ class OnnxPointTracker:
             image = self._frame(frame, t)
             if previous is None:
                 positions, flags, scores, *filters = self.init_graph(image, points)
+                reference = last = self.profile_graph(image) if self.blur_match is not None else None
             else:
                 if image.shape != previous.shape:
                     raise InputError(f"frame {t} has size {image.shape[2:]}, frame 0 has {previous.shape[2:]}")
-                positions, flags, scores, *filters = self.step_graph(image, previous, positions, flags, *filters)
+                if self.blur_match is None:
+                    positions, flags, scores, *filters = self.step_graph(image, previous, positions, flags, *filters)
+                else:
+                    profile = self.profile_graph(image)
+                    (positions, flags, scores, *filters), reference = self._matched_step(
+                        image, previous, positions, flags, filters, reference, last, profile)
+                    last = profile
             previous = image
             tracks.append(positions)
             lost.append(flags)
@@ -88,6 +100,38 @@ class OnnxPointTracker:
             raise InputError("no frames to track")
         keep = slice(0, 1) if single else slice(None)
         return tuple(np.stack(a)[:, keep] for a in (tracks, lost, psr))  # type: ignore[return-value]
+
+    def _retrained(self, image: np.ndarray, positions: np.ndarray, flags: np.ndarray) -> tuple[np.ndarray, list]:
+        """Lost flags and filters trained afresh on ``image`` at ``positions`` (lost points stay lost)."""
+        _, fresh_lost, _, *filters = self.init_graph(image, positions)
+        return flags | fresh_lost, filters
+
+    def _matched_step(self, image: np.ndarray, previous: np.ndarray, positions: np.ndarray, flags: np.ndarray,
+                      filters: list, reference: np.ndarray, last: np.ndarray, profile: np.ndarray):
+        """One step with blur matching (``PointTracker._blur_matched_step``): the step graph's outputs and the
+        reference profile after it (``reference``: the profile of the frame the filters were last trained afresh
+        on, ``last``: of ``previous``, ``profile``: of ``image``)."""
+        change = float(self.relative_graph(reference, profile)[0])
+        if change > self.blur_match:  # blurrier: retrain on the previous frame blurred to this one
+            matched = _blurred(previous, max(float(self.relative_graph(last, profile)[0]), 0.0))
+            flags, filters = self._retrained(matched, positions, flags)
+            return self.step_graph(image, matched, positions, flags, *filters), profile
+        if change < -self.blur_match:  # sharper: search a copy blurred to the filters' level, retrain on the frame
+            positions, flags, scores, *filters = self.step_graph(_blurred(image, -change), previous, positions, flags,
+                                                                 *filters)
+            flags, filters = self._retrained(image, positions, flags)
+            return [positions, flags, scores, *filters], profile
+        return self.step_graph(image, previous, positions, flags, *filters), reference
+
+
+def _blurred(image: np.ndarray, variance: float) -> np.ndarray:
+    """A (1, 1, H, W) frame blurred by a Gaussian of ``variance`` px^2 with the kernel of
+    ``models.tracking.blur.gaussian_blur`` (``2 round(4 sigma) + 1`` taps, reflected borders)."""
+    if variance <= 0:
+        return image
+    sigma = float(np.sqrt(variance))
+    size = min(int(round(sigma * 8 + 1)) | 1, 2 * min(image.shape[2:]) - 1)
+    return cv2.GaussianBlur(image[0, 0], (size, size), sigma, borderType=cv2.BORDER_REFLECT_101)[None, None]
 
 
 def track_files(bundle: str | Path, frames: str | Path, out: str | Path, points: str | Path | None = None,

@@ -32,6 +32,12 @@ def _check_images(image: Tensor, name: str) -> None:
         raise InputError(f"{name} needs (B, 1, H, W) gray images with H, W >= 8, got {tuple(image.shape)}")
 
 
+def _hann(n: int, like: Tensor) -> Tensor:
+    """Symmetric Hann window of ``n`` samples (``torch.hann_window(n, periodic=False)``, written out so that an
+    exported graph keeps ``n`` dynamic)."""
+    return 0.5 - 0.5 * torch.cos(torch.arange(n, device=like.device).to(like.dtype) * (2 * math.pi / (n - 1)))
+
+
 def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4) -> Tensor:
     """Radial power profile of Hann-windowed, mean-free images.
 
@@ -47,14 +53,13 @@ def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4) -
     if bins < _MIN_BINS:
         raise InputError(f"a radial power profile needs at least {_MIN_BINS} bins, got {bins}")
     h, w = image.shape[-2:]
-    window = torch.hann_window(h, periodic=False, dtype=image.dtype, device=image.device)[:, None] * torch.hann_window(
-        w, periodic=False, dtype=image.dtype, device=image.device
-    )
+    window = _hann(h, image)[:, None] * _hann(w, image)
     mean = (image * window).sum((-2, -1), keepdim=True) / window.sum()
-    spectrum = torch.fft.rfft2((image - mean) * window)[:, 0]
+    spectrum = torch.fft.rfft2(((image - mean) * window)[:, 0])
     power = (spectrum.real.square() + spectrum.imag.square()).flatten(1)  # (B, H (W // 2 + 1))
-    wy = torch.fft.fftfreq(h, dtype=image.dtype, device=image.device)[:, None] * (2 * math.pi)
-    wx = torch.fft.rfftfreq(w, dtype=image.dtype, device=image.device) * (2 * math.pi)
+    rows = torch.arange(h, device=image.device)
+    wy = torch.where(rows > (h - 1) // 2, rows - h, rows).to(image.dtype)[:, None] * (2 * math.pi / h)  # fftfreq
+    wx = torch.arange(w // 2 + 1, device=image.device).to(image.dtype) * (2 * math.pi / w)  # rfftfreq
     radius2 = (wy.square() + wx.square()).flatten()
     ring = (radius2.sqrt() * (bins / math.pi)).long()
     inside = (ring < bins).to(image.dtype)

@@ -2,15 +2,19 @@
 pyramid level, searched coarse to fine.
 
 Per frame: build a 4-level pyramid; from the coarsest level down, extract every point's patch at its current
-estimate (one gather for all points), correlate with that level's filter, find the peak and add the scaled
-shift; the filters' regulariser grows with the frame's noise (estimated once per frame) against each patch's
+estimate (one gather for all points), correlate with that level's filter, find the peak (on the two finest
+levels weighted by a Gaussian prior around the coarser estimate) and add the scaled shift; the filters'
+regulariser grows with the frame's noise (estimated once per frame) against each patch's
 contrast, so frequencies that hold only noise in a blurred or dark patch do not move the peak. Points that leave
 the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is weak against the frame's other
 points and that do not track back to where they came from (a forward-backward test on level 0) are flagged lost
 and frozen at their last position. Both cues are needed: each alone fires on correct tracks in dark, blurred or
 compressed frames, and a false alarm is final; together they still catch most points that an occluder covers.
 Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position: the search
-sample shifted in the Fourier domain.
+sample shifted in the Fourier domain. Before all this, a frame whose blur differs from that of the frame the
+filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
+matched to it: the sharper of the two views is blurred to the other's level (:meth:`_blur_matched_step`), since a
+sharp template matched against a blurred view is biased at every asymmetric structure.
 
 Cost: the patches are small (default 21 px at level 0, which sets the accuracy, and 15 px on three coarser levels,
 the coarsest of which bounds the largest motion at about 60 px per frame), the filters keep only the lower 70 % of

@@ -1,6 +1,6 @@
 """The runtime's point tracker: its command, run without torch, against the PyTorch tracker on the same frames
-and start points (tracks within 0.01 px, the same lost flags), OpenCV's start points, a lone point, frames that
-do not fit the bundle."""
+and start points (tracks within 0.01 px, the same lost flags), through blur changes too, OpenCV's start points, a
+lone point, frames that do not fit the bundle."""
 
 import cv2
 import numpy as np
@@ -11,6 +11,7 @@ from core.errors import InputError
 from core.frames import read_frames
 from data.flow import synthetic_sequence
 from models.tracking import PointTracker
+from models.tracking.blur import radial_power_profile, relative_blur
 from runtime.tracking import OnnxPointTracker, good_features
 
 pytestmark = pytest.mark.slow  # uses an exported bundle
@@ -71,3 +72,21 @@ def test_a_lone_point_and_bad_frames(tracking_bundle, frames) -> None:
         tracker.track([images[0], images[0][:, :100]], start)
     with pytest.raises(InputError, match="no good features"):
         good_features(np.zeros((96, 128)), 10)
+
+
+def test_blur_matching_branches_match_pytorch(tracking_bundle) -> None:
+    """A defocus that sets in and wears off again: the runtime takes the same retrain and blurred-search branches
+    as PyTorch (checked to happen) and gives the same tracks."""
+    seq = synthetic_sequence(frames=4, size=(96, 128), max_motion=3.0, blur=0.0, seed=4)
+    sigmas = (0.0, 2.5, 2.5, 0.0)  # blur variance changes of +6.25 and -6.25 px^2, beyond the 2 px^2 threshold
+    images = [cv2.GaussianBlur(f, (0, 0), s) if s else f for f, s in zip(seq.frames.astype(np.float32), sigmas,
+                                                                          strict=True)]
+    profiles = radial_power_profile(torch.from_numpy(np.stack(images))[:, None])
+    blurrier, sharper = relative_blur(profiles[[0, 2]], profiles[[1, 3]])
+    assert blurrier > 2 and sharper < -2
+    start = np.random.default_rng(1).uniform([10, 10], [118, 86], (40, 2))
+    tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
+    ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
+                                                         torch.from_numpy(start).float())
+    np.testing.assert_array_equal(lost, ref_lost.numpy())
+    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01

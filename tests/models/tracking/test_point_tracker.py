@@ -295,3 +295,60 @@ def test_noise_reg_is_checked():
     for value in (-1.0, float("nan")):
         with pytest.raises(InputError, match="noise_reg"):
             PointTracker("ccot", noise_reg=value)
+
+
+def _blur_sequence(blurs: tuple[float, ...], seed: int) -> tuple[list[torch.Tensor], torch.Tensor, torch.Tensor]:
+    """A periodic texture moved by (3, -2) px per frame and blurred by ``blurs`` (Gaussian stds), with sensor noise
+    of std 1, rounded: frames, start points on a grid, their true last positions."""
+    img = _smooth_image(192, 192, seed)
+    gen = torch.Generator().manual_seed(seed)
+    frames = [_blur(torch.roll(img, (-2 * t, 3 * t), (0, 1)), s) for t, s in enumerate(blurs)]
+    frames = [(f + torch.randn(f.shape, generator=gen, dtype=torch.float64)).round() for f in frames]
+    grid = torch.arange(40.0, 153.0, 8.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    return frames, points, points + torch.tensor([3.0, -2.0], dtype=torch.float64) * (len(blurs) - 1)
+
+
+@pytest.mark.parametrize("blurs", [(0.5, 1.5, 2.3, 3.0, 3.6), (3.6, 3.6, 0.5, 0.5, 0.5)])
+def test_blur_matching_removes_the_drift_of_a_changing_blur(blurs):
+    """Growing defocus (the filters are sharper than each new frame) and defocus wearing off (the frame is
+    sharper than the filters): matching the blur before the search is several times more precise than not."""
+    frames, points, truth = _blur_sequence(blurs, seed=8)
+    errors = {}
+    for blur_match in (None, 2.0):
+        tracks, lost, _ = PointTracker("ccot", blur_match=blur_match).double().track(frames, points)
+        errors[blur_match] = (tracks[-1] - truth).norm(dim=-1).median().item()
+    assert not lost[-1].any()  # the matched tracker's
+    assert errors[2.0] < 0.3 and errors[2.0] < 0.5 * errors[None], errors
+
+
+def test_blur_matching_leaves_a_steady_blur_alone():
+    frames, points, _ = _blur_sequence((1.0, 1.3, 0.8, 1.2), seed=9)  # changes below 2 px^2
+    plain = PointTracker("ccot", blur_match=None).double().track(frames, points)
+    matched = PointTracker("ccot").double().track(frames, points)
+    for a, b in zip(plain, matched, strict=True):
+        torch.testing.assert_close(a, b)
+
+
+def test_search_prior_does_not_bias_a_clear_peak():
+    """The displacement prior chooses the peak; the sub-pixel position still comes from the unweighted map."""
+    img = _smooth_image(128, 128, 10)
+    frames = [img, _translate(img, 2.7, -1.4)]
+    points = torch.tensor([[40.0, 50.0], [64.0, 64.0], [90.0, 70.0]], dtype=torch.float64)
+    free = PointTracker("ccot", search_sigma=0.0).double().track(frames, points)[0][1]
+    weighted = PointTracker("ccot").double().track(frames, points)[0][1]
+    torch.testing.assert_close(weighted, free, atol=0.01, rtol=0)
+    torch.testing.assert_close(weighted - points, torch.tensor([[2.7, -1.4]] * 3, dtype=torch.float64), atol=0.05,
+                               rtol=0)
+
+
+def test_search_and_blur_settings_are_checked():
+    assert PointTracker("ccot").search_sigmas == (3.0, 3.0, 0.0, 0.0)
+    assert PointTracker("ccot", levels=2, patch_size=21, newton_iterations=2).search_sigmas == (3.0, 0.0)
+    with pytest.raises(InputError, match="search_sigma"):
+        PointTracker("ccot", search_sigma=-1.0)
+    with pytest.raises(InputError, match="one value per pyramid level"):
+        PointTracker("ccot", search_sigma=(3.0, 3.0))
+    for value in (0.0, -2.0, float("nan")):
+        with pytest.raises(InputError, match="blur_match"):
+            PointTracker("ccot", blur_match=value)
