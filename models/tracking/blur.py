@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 
 import torch
+import torch.nn.functional as F
 from kornia.filters import gaussian_blur2d
 from torch import Tensor, nn
 
@@ -38,20 +39,29 @@ def _hann(n: int, like: Tensor) -> Tensor:
     return 0.5 - 0.5 * torch.cos(torch.arange(n, device=like.device).to(like.dtype) * (2 * math.pi / (n - 1)))
 
 
-def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4) -> Tensor:
+def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4, reduce: int = 2) -> Tensor:
     """Radial power profile of Hann-windowed, mean-free images.
 
     Args:
-        image: ``(B, 1, H, W)`` gray images, ``H, W >= 8``. bins: rings of equal width in ``|w|`` from 0 to
-        ``pi`` rad/px (frequencies beyond ``pi``, the spectrum's corners, are left out). noise_stride: pixel
-        stride of the noise estimate (:func:`~models.dcf.image_noise_std`).
+        image: ``(B, 1, H, W)`` gray images, ``H, W >= 8 reduce``. bins: rings centred on ``|w| = i pi / (bins
+        reduce)`` rad/px, ``i = 0 .. bins - 1``, each frequency shared between the two nearest by linear weights
+        (frequencies beyond the last, the spectrum's corners, are left out). noise_stride: pixel
+        stride of the noise estimate (:func:`~models.dcf.image_noise_std`). reduce: the profile is taken of the
+        images averaged over ``reduce x reduce`` blocks (4x cheaper at 2; blurs of 1 px^2 and more still
+        attenuate the remaining band by a factor of 10 and more), its frequencies given in the input's units.
     Returns:
-        ``(B, 3, bins)``: per ring the mean power, the power of the images' white noise (its variance, at
-        least the 8-bit rounding's 1/12, times the window's energy) and the mean ``|w|^2`` (rad^2/px^2).
+        ``(B, 3, bins)``: per ring the mean power, the power of the (reduced) images' white noise (its variance,
+        at least the 8-bit rounding's 1/12 over ``reduce^2``, times the window's energy) and the mean ``|w|^2``
+        (rad^2 per input px^2).
     """
     _check_images(image, "radial_power_profile")
     if bins < _MIN_BINS:
         raise InputError(f"a radial power profile needs at least {_MIN_BINS} bins, got {bins}")
+    if reduce < 1 or min(image.shape[-2:]) < 8 * reduce:
+        raise InputError(f"reduce must be a positive integer that leaves 8 px a side, got {reduce} for "
+                         f"{tuple(image.shape)}")
+    if reduce > 1:
+        image = F.avg_pool2d(image, reduce)
     h, w = image.shape[-2:]
     window = _hann(h, image)[:, None] * _hann(w, image)
     mean = (image * window).sum((-2, -1), keepdim=True) / window.sum()
@@ -61,14 +71,22 @@ def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4) -
     wy = torch.where(rows > (h - 1) // 2, rows - h, rows).to(image.dtype)[:, None] * (2 * math.pi / h)  # fftfreq
     wx = torch.arange(w // 2 + 1, device=image.device).to(image.dtype) * (2 * math.pi / w)  # rfftfreq
     radius2 = (wy.square() + wx.square()).flatten()
-    ring = (radius2.sqrt() * (bins / math.pi)).long()
-    inside = (ring < bins).to(image.dtype)
-    ring = ring.clamp_max(bins - 1)
-    zeros = torch.zeros(power.shape[0], bins, dtype=image.dtype, device=image.device)
-    count = zeros[0].index_add(0, ring, inside).clamp_min(1)
-    ring_power = zeros.index_add(1, ring, power * inside) / count
-    ring_radius2 = zeros[0].index_add(0, ring, radius2 * inside) / count
-    noise = image_noise_std(image, noise_stride).square().clamp_min(1 / 12) * window.square().sum()
+    # linear ring weights: a frequency between ring centres i and i + 1 (multiples of pi / bins) is shared
+    # between them by distance, so that rounding cannot move a whole frequency from one ring to the next;
+    # frequencies beyond the last centre are left out
+    position = radius2.sqrt() * (bins / math.pi)
+    inside = (position <= bins - 1).to(image.dtype)
+    lower = position.floor().clamp_max(bins - 1)
+    upper_weight = (position - lower) * inside
+    lower_weight = (1 - position + lower) * inside
+    values = torch.cat([power, radius2[None], torch.ones_like(radius2)[None]])  # (B + 2, F): power, |w|^2, count
+    sums = torch.zeros(values.shape[0], bins + 1, dtype=image.dtype, device=image.device)
+    index = lower.long()
+    sums = sums.index_add(1, index, values * lower_weight).index_add(1, index + 1, values * upper_weight)
+    count = sums[-1, :bins].clamp_min(1e-12)
+    ring_power = sums[:-2, :bins] / count
+    ring_radius2 = sums[-2, :bins] / count / reduce**2
+    noise = image_noise_std(image, noise_stride).square().clamp_min(1 / 12 / reduce**2) * window.square().sum()
     return torch.stack([ring_power, noise[:, None].expand_as(ring_power), ring_radius2.expand_as(ring_power)], 1)
 
 
@@ -119,9 +137,9 @@ def gaussian_blur(image: Tensor, variance: float) -> Tensor:
 class RadialPowerProfile(nn.Module):
     """Module form of :func:`radial_power_profile`: ``(B, 1, H, W)`` -> ``(B, 3, bins)``."""
 
-    def __init__(self, bins: int = 64, noise_stride: int = 4) -> None:
+    def __init__(self, bins: int = 64, noise_stride: int = 4, reduce: int = 2) -> None:
         super().__init__()
-        self.bins, self.noise_stride = bins, noise_stride
+        self.bins, self.noise_stride, self.reduce = bins, noise_stride, reduce
 
     def forward(self, image: Tensor) -> Tensor:
-        return radial_power_profile(image, self.bins, self.noise_stride)
+        return radial_power_profile(image, self.bins, self.noise_stride, self.reduce)
