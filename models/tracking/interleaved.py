@@ -15,14 +15,19 @@ from torch import Tensor
 from models.dcf._signal import wrap_index
 
 
-def interleaved_argmax(score: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-    """Maximum of each map of ``score`` ``(N, P, N)``: value, row and column index, each ``(P,)``.
+def interleaved_argmax(score: Tensor, weight: Tensor | None = None) -> tuple[Tensor, Tensor, Tensor]:
+    """Maximum of each map of ``score`` ``(N, P, N)``: value, row and column index, each ``(P,)``; with a
+    ``weight`` (broadcasting to the maps, e.g. ``(N, 1, N)``) the maximum of ``score * weight``, its value read
+    from ``score``.
 
     Reduces over the outer axis first (an element-wise maximum of contiguous slabs, much faster on a CPU than
     a reduction over the short inner axis), then finds the row within the winning column."""
-    value, column = score.amax(0).max(1)
+    weighted = score if weight is None else score * weight
+    value, column = weighted.amax(0).max(1)
     rows = torch.arange(score.shape[0], device=score.device)[:, None]
-    row = score.flatten()[_flat_index(score, rows, column)].argmax(0)  # the winning column of every map
+    row = weighted.flatten()[_flat_index(score, rows, column)].argmax(0)  # the winning column of every map
+    if weight is not None:
+        value = score.flatten()[_flat_index(score, row, column)]
     return value, row, column
 
 

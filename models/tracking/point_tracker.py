@@ -7,8 +7,9 @@ levels weighted by a Gaussian prior around the coarser estimate) and add the sca
 regulariser grows with the frame's noise (estimated once per frame) against each patch's
 contrast, so frequencies that hold only noise in a blurred or dark patch do not move the peak. Points that leave
 the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is weak against the frame's other
-points and that do not track back to where they came from (a forward-backward test on level 0) are flagged lost
-and frozen at their last position. Both cues are needed: each alone fires on correct tracks in dark, blurred or
+points and that either do not track back to where they came from (a forward-backward test on level 0) or whose
+unweighted level-0 peak lies elsewhere than the prior's choice (an ambiguous match) are flagged lost and frozen
+at their last position. Both cues are needed: each alone fires on correct tracks in dark, blurred or
 compressed frames, and a false alarm is final; together they still catch most points that an occluder covers.
 Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position: the search
 sample shifted in the Fourier domain. Before all this, a frame whose blur differs from that of the frame the
@@ -46,7 +47,7 @@ from tqdm import tqdm
 
 from core.errors import InputError
 from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label, image_noise_std
-from models.dcf._signal import full_frequencies
+from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
@@ -127,6 +128,13 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     return _lerp(rows[..., :-1], rows[..., 1:], frac[:, :, 0])
 
 
+def _peak_gap(a: tuple[Tensor, Tensor, Tensor], b: tuple[Tensor, Tensor, Tensor], n: int) -> Tensor:
+    """Chebyshev distance ``(P,)`` in bins between two :func:`interleaved_argmax` results on ``(n, P, n)`` maps
+    (shifts taken circularly)."""
+    rows, columns = wrap_index(a[1] - b[1], n), wrap_index(a[2] - b[2], n)
+    return torch.maximum(rows.abs(), columns.abs())
+
+
 def _per_level(value, levels: int, name: str, kind: type = int) -> tuple:
     """One value per pyramid level from a scalar or a sequence (``kind``: int or float)."""
     values = (kind(value),) * levels if isinstance(value, int | float) else tuple(kind(v) for v in value)
@@ -170,12 +178,13 @@ class PointTracker(nn.Module):
         peak is taken; 0 searches the whole map. The coarser levels have placed a point within about a pixel of
         theirs (2 px of the next finer level), so a far peak at a fine level is more often a response to noise,
         compression blocks or a neighbouring structure than a correction; the weighting keeps such peaks from
-        pulling the point away. The PSR is taken on the unweighted level-0 map. None: 3 px at the two finest
+        pulling the point away. Sub-pixel refinement and the PSR use the unweighted map. None: 3 px at the two finest
         levels, free search at the others (the large motion is found there).
         psr_relative, fb_threshold, psr_threshold: a point is lost when its level-0 PSR falls below
         ``psr_relative`` times the geometric mean PSR of the frame's tracked points (:meth:`_lost_threshold`)
-        and tracking it back to the previous frame misses by more than ``fb_threshold`` px
-        (:meth:`_backward_error`; None: the PSR test alone), or when its PSR is below ``psr_threshold``
+        and either tracking it back to the previous frame misses by more than ``fb_threshold`` px
+        (:meth:`_backward_error`) or its unweighted level-0 peak is more than ``fb_threshold`` px from the peak
+        the displacement prior chose (None: the PSR test alone), or when its PSR is below ``psr_threshold``
         (no peak at all). psr_exclude: PSR exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
@@ -380,15 +389,16 @@ class PointTracker(nn.Module):
             zr, zi, std = self._sample(pyramid[level], centre, level)
             spectrum = self._response(filters[level], zr, zi, self._noise_power(noise, std, level), level)
             score = self.dfts[level].inverse(spectrum)  # (N, P, N)
-            if level == 0:  # the PSR judges the unweighted map
-                raw_score, raw_argmax = score, interleaved_argmax(score)
-            if self.search_sigmas[level] > 0:
-                score = score * getattr(self, f"search_prior_{level}")
-            argmax = raw_argmax if level == 0 and self.search_sigmas[0] == 0 else interleaved_argmax(score)
+            weighted = self.search_sigmas[level] > 0
+            if level == 0 or not weighted:
+                argmax = interleaved_argmax(score)
+                psr_argmax = argmax  # the PSR judges the unweighted level-0 map
+            if weighted:  # the peak of the prior-weighted map, refined on the map itself
+                argmax = interleaved_argmax(score, getattr(self, f"search_prior_{level}"))
             d = d + 2**level * self._peak(spectrum, score, argmax, level)
             spectra.insert(0, (zr, zi))
             centres.insert(0, centre)
-        psr = interleaved_psr(raw_score, self.psr_exclude, raw_argmax)
+        psr = interleaved_psr(score, self.psr_exclude, psr_argmax)
         moved = start + d
         # Training samples at the new positions: the search samples shifted in the Fourier domain (as C-COT
         # centres its samples on the target), cheaper than extracting again and at least as accurate. Level 0's
@@ -397,7 +407,10 @@ class PointTracker(nn.Module):
         lost = lost | ~self._inside(moved, frame)
         weak = ~(psr >= self._lost_threshold(psr, lost))
         if self.fb_threshold is not None:
-            weak = self._fails_backward(weak, previous, start, *sample, noise)
+            # a weak point whose unweighted level-0 peak lies elsewhere than the prior's choice is ambiguous;
+            # the other weak points take the forward-backward test
+            ambiguous = weak & (_peak_gap(psr_argmax, argmax, score.shape[0]) > self.fb_threshold)
+            weak = ambiguous | self._fails_backward(weak & ~ambiguous, previous, start, *sample, noise)
         lost = lost | weak | ~(psr >= self.psr_threshold)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
         target = torch.where(lost.unsqueeze(-1), start, moved)

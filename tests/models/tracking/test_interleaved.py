@@ -49,6 +49,15 @@ def test_argmax_and_peak_equal_the_per_map_results(n, m):
     torch.testing.assert_close(integer, response_peak(maps, 2, subpixel=False)[0])
 
 
+def test_weighted_argmax_is_the_maximum_of_the_weighted_maps_with_the_maps_value():
+    maps = _maps(30, 15, 15, seed=3)
+    weight = torch.rand(15, 1, 15, generator=torch.Generator().manual_seed(4), dtype=torch.float64)
+    value, row, column = interleaved_argmax(maps.permute(1, 0, 2).contiguous(), weight)
+    flat = (maps * weight[:, 0]).flatten(1).argmax(1)  # one map at a time: (P, N, M) times (N, M)
+    assert torch.equal(row, flat // 15) and torch.equal(column, flat % 15)
+    torch.testing.assert_close(value, maps.flatten(1)[torch.arange(30), flat])
+
+
 @pytest.mark.parametrize(("n", "m", "exclude"), [(21, 21, 7), (15, 15, 11), (9, 11, 3)])
 def test_psr_equals_a_loop_over_the_sidelobe(n, m, exclude):
     maps = _maps(12, n, m, seed=exclude)
