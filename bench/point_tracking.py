@@ -7,7 +7,7 @@ consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder
 sequence with chained ground truth (``--synthetic``) and the synthetic stress conditions of
 :mod:`data.flow.stress` (``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion
 blur, fast motion, illumination change, JPEG, a long run) and real photographs seen through chains of small
-homographies under growing defocus blur, JPEG compression or darkness (:mod:`data.flow.homography`,
+homographies under growing defocus or motion blur, JPEG compression or darkness (:mod:`data.flow.homography`,
 ``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file stem>``, 6 frames). Metrics at the
 last frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px),
 ``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
@@ -416,7 +416,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--homography", nargs="+", action="extend", default=[], metavar="IMAGE",
                         help="real images to track through chained homographies; repeat or list several")
     parser.add_argument("--homography-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS,
-                        default=["blur", "jpeg", "light"], metavar="CONDITION",
+                        default=["blur", "motion", "jpeg", "light"], metavar="CONDITION",
                         help="degradations of the homography sequences: " + ", ".join(HOMOGRAPHY_CONDITIONS))
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")

@@ -8,6 +8,8 @@ degrees, a scale change of up to 3 % and a perspective tilt about the image cent
 to ``step`` px), then degraded at strength ``s = t / (T - 1)``:
 
 - ``blur``: defocus, a Gaussian of std ``0.3 + 3.7 s`` px;
+- ``motion``: motion blur of a panning camera, a straight streak of ``1 + 11 s`` px in one direction (drawn from
+  the seed, the same in every frame);
 - ``jpeg``: JPEG quality ``60 - 57 s`` (60 down to 3);
 - ``light``: exposure ``1 - 0.85 s`` with a gamma of ``1 + 0.3 s`` (a darkening scene);
 - ``none``: the geometry alone.
@@ -27,7 +29,7 @@ import numpy as np
 
 from core.errors import InputError
 
-HOMOGRAPHY_CONDITIONS = ("blur", "jpeg", "light", "none")
+HOMOGRAPHY_CONDITIONS = ("blur", "jpeg", "light", "none", "motion")
 _MARGIN = 6.0  # px a valid point keeps from the frame border
 
 
@@ -67,10 +69,27 @@ def _homographies(rng: np.random.Generator, frames: int, width: int, height: int
     return np.stack(chain)
 
 
-def _degrade(image: np.ndarray, condition: str, strength: float, rng: np.random.Generator) -> np.ndarray:
-    """One frame ``(H, W)`` float32 in [0, 255] at degradation ``strength`` in [0, 1], noisy and 8-bit rounded."""
+def streak_kernel(length: float, angle: float) -> np.ndarray:
+    """Motion-blur kernel: a straight streak of ``length`` px at ``angle`` radians (x towards y) through the
+    centre of an odd square, as the mean of 256 bilinear splats along it; sums to 1."""
+    half = int(np.ceil(length / 2)) + 1
+    kernel = np.zeros((2 * half + 1, 2 * half + 1), np.float64)
+    t = np.linspace(-length / 2, length / 2, 256)
+    x, y = half + t * np.cos(angle), half + t * np.sin(angle)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = x - x0, y - y0
+    for dy, dx, weight in ((0, 0, (1 - fx) * (1 - fy)), (0, 1, fx * (1 - fy)), (1, 0, (1 - fx) * fy), (1, 1, fx * fy)):
+        np.add.at(kernel, (y0 + dy, x0 + dx), weight)
+    return (kernel / kernel.sum()).astype(np.float32)
+
+
+def _degrade(image: np.ndarray, condition: str, strength: float, rng: np.random.Generator, angle: float) -> np.ndarray:
+    """One frame ``(H, W)`` float32 in [0, 255] at degradation ``strength`` in [0, 1], noisy and 8-bit rounded
+    (``angle``: the motion blur's direction)."""
     if condition == "blur":
         image = cv2.GaussianBlur(image, (0, 0), 0.3 + 3.7 * strength)
+    elif condition == "motion":
+        image = cv2.filter2D(image, -1, streak_kernel(1 + 11 * strength, angle), borderType=cv2.BORDER_REFLECT)
     elif condition == "light":
         image = 255 * (image * (1 - 0.85 * strength) / 255) ** (1 + 0.3 * strength)
     image = np.clip(image + rng.normal(0, 1.0, image.shape), 0, 255).round().astype(np.uint8)
@@ -81,10 +100,12 @@ def _degrade(image: np.ndarray, condition: str, strength: float, rng: np.random.
 
 
 def homography_sequence(
-    image: np.ndarray, condition: str, frames: int = 6, seed: int = 0, step: float = 6.0
+    image: np.ndarray, condition: str, frames: int = 6, seed: int = 0, step: float = 6.0,
+    motion_angle: float | None = None,
 ) -> HomographySequence:
     """``frames`` views of a gray ``image`` ``(H, W)`` (values in [0, 255]) under ``condition`` (one of
-    :data:`HOMOGRAPHY_CONDITIONS`), moving up to about ``step`` px per frame plus the rotation and scale."""
+    :data:`HOMOGRAPHY_CONDITIONS`), moving up to about ``step`` px per frame plus the rotation and scale
+    (``motion_angle``: the motion blur's direction in radians, x towards y; None: drawn from the seed)."""
     if condition not in HOMOGRAPHY_CONDITIONS:
         choices = ", ".join(HOMOGRAPHY_CONDITIONS)
         raise InputError(f"unknown homography condition {condition!r}; choose one of {choices}")
@@ -96,8 +117,9 @@ def homography_sequence(
     height, width = image.shape
     chain = _homographies(np.random.default_rng(seed), frames, width, height, step)  # the same for every condition
     rng = np.random.default_rng([seed, HOMOGRAPHY_CONDITIONS.index(condition)])
+    angle = rng.uniform(0, np.pi) if condition == "motion" and motion_angle is None else (motion_angle or 0.0)
     source = image.astype(np.float32)
     views = [cv2.warpPerspective(source, h, (width, height), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
              for h in chain]
-    out = np.stack([_degrade(v, condition, t / (frames - 1), rng) for t, v in enumerate(views)])
+    out = np.stack([_degrade(v, condition, t / (frames - 1), rng, angle) for t, v in enumerate(views)])
     return HomographySequence(out, chain)

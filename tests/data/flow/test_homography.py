@@ -7,6 +7,7 @@ import pytest
 
 from core.errors import InputError
 from data.flow import HOMOGRAPHY_CONDITIONS, homography_sequence
+from data.flow.homography import streak_kernel
 
 
 def _image(h: int = 120, w: int = 160) -> np.ndarray:
@@ -73,3 +74,22 @@ def test_bad_input():
         homography_sequence(_image(), "blur", frames=1)
     with pytest.raises(InputError, match=r"\(P, 2\)"):
         homography_sequence(_image(), "none", frames=2).track(np.zeros((3, 3)))
+
+
+def test_streak_kernel_is_a_line_of_the_given_length_and_direction():
+    kernel = streak_kernel(9.0, np.pi / 2)  # along y
+    assert kernel.sum() == pytest.approx(1.0, abs=1e-6)
+    ys, xs = np.nonzero(kernel > 1e-6)
+    assert set(xs) == {kernel.shape[1] // 2} and ys.max() - ys.min() == 10  # 9 px between half-pixel ends
+    rows = np.arange(kernel.shape[0]) - kernel.shape[0] // 2
+    assert (kernel.sum(1) * rows**2).sum() == pytest.approx(81 / 12, rel=0.05)  # a box's variance, L^2 / 12
+
+
+def test_motion_blur_smears_one_direction_only():
+    image = _image()
+    last = {}
+    for name, angle in (("along x", 0.0), ("along y", np.pi / 2)):
+        frames = homography_sequence(image, "motion", frames=6, seed=5, motion_angle=angle).frames
+        last[name] = [np.abs(cv2.Sobel(frames[-1], cv2.CV_32F, dx, 1 - dx)).mean() for dx in (1, 0)]  # |d/dx|, |d/dy|
+    assert last["along x"][0] < 0.6 * last["along y"][0]  # the x-derivative suffers from a streak along x
+    assert last["along y"][1] < 0.6 * last["along x"][1]
