@@ -8,7 +8,12 @@ sequence with chained ground truth (``--synthetic``) and the synthetic stress co
 :mod:`data.flow.stress` (``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion
 blur, fast motion, illumination change, JPEG, a long run) and real photographs seen through chains of small
 homographies under growing defocus or motion blur, JPEG compression or darkness (:mod:`data.flow.homography`,
-``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file stem>``, 6 frames). Metrics at the
+``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file stem>``, 6 frames) and real videos
+without ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named
+``roundtrip_<folder>``: the first ``--roundtrip-frames`` frames, then the same frames in reverse order back to the
+first, so every point's truth at the last frame is its start; this measures the drift and the false tracks
+that real motion, motion blur and deformation cause over many frames, but it would also reward a tracker that
+never moves, so it complements the sets with ground truth rather than replacing them). Metrics at the
 last frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px),
 ``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
 ``point_frames_per_s``, ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per
@@ -47,7 +52,7 @@ import numpy as np
 import torch
 
 from core.errors import InputError
-from core.frames import read_frame_gray
+from core.frames import read_frame_gray, read_frames
 from core.settings import parse_tracker
 from core.threads import cpu_threads
 from data.flow import (
@@ -133,6 +138,21 @@ def homography_dataset(image: str | Path, condition: str, n_points: int, seed: i
     seq = homography_sequence(read_frame_gray(image), condition, frames, seed)
     frames_u8, points, tracks, valid = _tracked(seq, n_points, spacing)
     return Dataset(frames_u8, points, tracks[-1], valid[-1])
+
+
+def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing: int = 3) -> Dataset:
+    """The first ``n_frames`` frames of a real video (a folder of images, :func:`~core.frames.read_frames`) and
+    then the same frames back to the first (``2 n_frames - 1`` in all); the truth at the last frame is the start
+    points themselves."""
+    if n_frames < 2:
+        raise InputError(f"a round trip needs at least 2 frames, got {n_frames}")
+    frames, paths = read_frames(folder)
+    if len(frames) < n_frames:
+        raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames}")
+    forward = np.stack(frames[:n_frames]).round().clip(0, 255).astype(np.uint8)
+    frames = np.concatenate([forward, forward[-2::-1]])
+    points = detect(frames[0], n_points, spacing)
+    return Dataset(frames, points, points.astype(np.float64), np.ones(len(points), dtype=bool))
 
 
 def clock(device: str):
@@ -418,6 +438,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--homography-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS,
                         default=["blur", "motion", "jpeg", "light"], metavar="CONDITION",
                         help="degradations of the homography sequences: " + ", ".join(HOMOGRAPHY_CONDITIONS))
+    parser.add_argument("--roundtrip", nargs="+", action="extend", default=[], metavar="DIR",
+                        help="real video frame folders to track forward and back to the first frame")
+    parser.add_argument("--roundtrip-frames", type=int, default=12,
+                        help="frames of each round-trip video played forward (then back)")
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
@@ -463,6 +487,9 @@ def main(argv: list[str] | None = None) -> int:
                 path = Path(image)
                 name = f"homography_{condition}_{path.parent.name}_{path.stem}"
                 datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing)
+        for folder in args.roundtrip:
+            name = f"roundtrip_{Path(folder).name}"
+            datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing)
         if args.synthetic or not (datasets or args.stress is not None):
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
         for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:

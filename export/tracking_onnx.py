@@ -6,11 +6,13 @@
 Graphs (frame height and width and the number of points P dynamic; the pyramid is built inside):
 
 - ``init.onnx``: ``frame`` (1, 1, H, W) gray float32 in [0, 255], ``points`` (P, 2) (x, y) px -> ``positions`` (P,
-  2), ``lost`` (P,) bool (outside the image), ``psr`` (P,) (inf) and the filters of every pyramid level,
+  2), ``lost`` (P,) bool (outside the image), ``psr`` (P,) (inf), ``psr_mean`` (P,) (each point's running
+  geometric-mean PSR, inf: none yet) and the filters of every pyramid level,
   ``filters_0`` .. ``filters_{L-1}`` (3, N_l, P, K_l) (real and imaginary parts of the numerators and the
   denominators, finest level first, point-interleaved): :meth:`PointTracker.init`.
 - ``step.onnx``: ``frame``, ``previous`` (the frame before it, for the forward-backward test), ``positions``,
-  ``lost`` and the filters -> ``positions_out``, ``lost_out``, ``psr`` and ``filters_l_out``: one
+  ``lost``, ``psr_mean`` and the filters -> ``positions_out``, ``lost_out``, ``psr``, ``psr_mean_out`` and
+  ``filters_l_out``: one
   :meth:`PointTracker.forward` (one Gather per level for the patches, matrix products for the small DFTs, a fixed
   number of Newton iterations).
 - ``profile.onnx``: ``frame`` -> ``profile`` (1, 3, bins), its radial power profile, and ``relative_blur.onnx``:
@@ -48,13 +50,13 @@ MIN_SIZE, MAX_SIZE, MAX_POINTS = 64, 4096, 100_000
 def io_names(levels: int) -> tuple[list[str], list[str]]:
     """Input and output names of the exported step for a ``levels``-level tracker."""
     filters = [f"filters_{level}" for level in range(levels)]
-    inputs = ["frame", "previous", "positions", "lost", *filters]
-    return inputs, ["positions_out", "lost_out", "psr", *[f"{name}_out" for name in filters]]
+    inputs = ["frame", "previous", "positions", "lost", "psr_mean", *filters]
+    return inputs, ["positions_out", "lost_out", "psr", "psr_mean_out", *[f"{name}_out" for name in filters]]
 
 
 class InitGraph(nn.Module):
     """:meth:`PointTracker.init` with tensors out: frame (1, 1, H, W), points (P, 2) -> positions, lost, psr,
-    filters of every level."""
+    psr_mean, filters of every level."""
 
     def __init__(self, tracker: PointTracker) -> None:
         super().__init__()
@@ -62,7 +64,7 @@ class InitGraph(nn.Module):
 
     def forward(self, frame: Tensor, points: Tensor) -> tuple[Tensor, ...]:
         state = self.tracker.init(frame, points)
-        return state.positions, state.lost, state.psr, *state.filters
+        return state.positions, state.lost, state.psr, state.psr_mean, *state.filters
 
 
 class RelativeBlurGraph(nn.Module):
@@ -73,7 +75,8 @@ class RelativeBlurGraph(nn.Module):
 
 
 def example_inputs(tracker: PointTracker, height: int, width: int, points: int, seed: int = 0):
-    """Real inputs for one step: a textured frame, its filters at random points, and a shifted next frame."""
+    """Real inputs for one step: a textured frame, its filters at random points, and a shifted next frame (the
+    points' PSR history seeded, so that both branches of the lost test are exercised)."""
     gen = torch.Generator().manual_seed(seed)
     base = torch.rand(1, 1, height // 8 + 2, width // 8 + 2, generator=gen) * 255
     frame = torch.nn.functional.interpolate(base, size=(height, width), mode="bicubic", align_corners=False)
@@ -81,7 +84,8 @@ def example_inputs(tracker: PointTracker, height: int, width: int, points: int, 
     pts = torch.rand(points, 2, generator=gen) * torch.tensor([width - 1.0, height - 1.0])
     state = tracker.init(frame[0, 0], pts)
     nxt = torch.roll(frame, (2, -3), (2, 3))
-    return nxt, frame, state.positions, state.lost, *state.filters
+    psr_mean = 1 + 30 * torch.rand(points, generator=gen)
+    return nxt, frame, state.positions, state.lost, psr_mean, *state.filters
 
 
 def export_tracking_step(path: str | Path, tracker: PointTracker, height: int = 240, width: int = 320,
@@ -91,7 +95,7 @@ def export_tracking_step(path: str | Path, tracker: PointTracker, height: int = 
     p = torch.export.Dim("points", min=2, max=MAX_POINTS)
     h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
     inputs, outputs = io_names(tracker.levels)
-    dynamic = {"frame": {2: h, 3: w}, "previous": {2: h, 3: w}, "positions": {0: p}, "lost": {0: p}}
+    dynamic = {"frame": {2: h, 3: w}, "previous": {2: h, 3: w}, "positions": {0: p}, "lost": {0: p}, "psr_mean": {0: p}}
     dynamic["filters"] = tuple({2: p} for _ in range(tracker.levels))  # forward's *filters
     with torch.no_grad():
         return export_onnx(tracker, args, path, inputs, outputs, dynamic_shapes=dynamic)
@@ -103,7 +107,7 @@ def export_tracking_init(path: str | Path, tracker: PointTracker, height: int = 
     frame, _, positions, *_ = example_inputs(tracker, height, width, points)
     p = torch.export.Dim("points", min=2, max=MAX_POINTS)
     h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
-    outputs = ["positions", "lost", "psr", *[f"filters_{level}" for level in range(tracker.levels)]]
+    outputs = ["positions", "lost", "psr", "psr_mean", *[f"filters_{level}" for level in range(tracker.levels)]]
     with torch.no_grad():
         return export_onnx(InitGraph(tracker), (frame, positions), path, ["frame", "points"], outputs,
                            dynamic_shapes=({2: h, 3: w}, {0: p}))
@@ -141,6 +145,7 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                    "max_points": MAX_POINTS, "levels": tracker.levels},
             normalisation={"gray": "cv2.IMREAD_GRAYSCALE", "scale": 1.0},
             thresholds={"psr_threshold": tracker.psr_threshold, "psr_relative": tracker.psr_relative,
+                        "psr_rate": tracker.psr_rate,
                         "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
                         "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),

@@ -80,17 +80,18 @@ class OnnxPointTracker:
         for t, frame in enumerate(frames):
             image = self._frame(frame, t)
             if previous is None:
-                positions, flags, scores, *filters = self.init_graph(image, points)
+                positions, flags, scores, means, *filters = self.init_graph(image, points)
                 reference = last = self.profile_graph(image) if self.blur_match is not None else None
             else:
                 if image.shape != previous.shape:
                     raise InputError(f"frame {t} has size {image.shape[2:]}, frame 0 has {previous.shape[2:]}")
                 if self.blur_match is None:
-                    positions, flags, scores, *filters = self.step_graph(image, previous, positions, flags, *filters)
+                    positions, flags, scores, means, *filters = self.step_graph(image, previous, positions, flags,
+                                                                                means, *filters)
                 else:
                     profile = self.profile_graph(image)
-                    (positions, flags, scores, *filters), reference = self._matched_step(
-                        image, previous, positions, flags, filters, reference, last, profile)
+                    (positions, flags, scores, means, *filters), reference = self._matched_step(
+                        image, previous, positions, flags, means, filters, reference, last, profile)
                     last = profile
             previous = image
             tracks.append(positions)
@@ -103,25 +104,25 @@ class OnnxPointTracker:
 
     def _retrained(self, image: np.ndarray, positions: np.ndarray, flags: np.ndarray) -> tuple[np.ndarray, list]:
         """Lost flags and filters trained afresh on ``image`` at ``positions`` (lost points stay lost)."""
-        _, fresh_lost, _, *filters = self.init_graph(image, positions)
+        _, fresh_lost, _, _, *filters = self.init_graph(image, positions)
         return flags | fresh_lost, filters
 
     def _matched_step(self, image: np.ndarray, previous: np.ndarray, positions: np.ndarray, flags: np.ndarray,
-                      filters: list, reference: np.ndarray, last: np.ndarray, profile: np.ndarray):
+                      means: np.ndarray, filters: list, reference: np.ndarray, last: np.ndarray, profile: np.ndarray):
         """One step with blur matching (``PointTracker._blur_matched_step``): the step graph's outputs and the
-        reference profile after it (``reference``: the profile of the frame the filters were last trained afresh
-        on, ``last``: of ``previous``, ``profile``: of ``image``)."""
+        reference profile after it (``means``: the points' running PSR means; ``reference``: the profile of the
+        frame the filters were last trained afresh on, ``last``: of ``previous``, ``profile``: of ``image``)."""
         change = float(self.relative_graph(reference, profile)[0])
         if change > self.blur_match:  # blurrier: retrain on the previous frame blurred to this one
             matched = _blurred(previous, max(float(self.relative_graph(last, profile)[0]), 0.0))
             flags, filters = self._retrained(matched, positions, flags)
-            return self.step_graph(image, matched, positions, flags, *filters), profile
+            return self.step_graph(image, matched, positions, flags, means, *filters), profile
         if change < -self.blur_match:  # sharper: search a copy blurred to the filters' level, retrain on the frame
-            positions, flags, scores, *filters = self.step_graph(_blurred(image, -change), previous, positions, flags,
-                                                                 *filters)
+            positions, flags, scores, means, *filters = self.step_graph(_blurred(image, -change), previous, positions,
+                                                                        flags, means, *filters)
             flags, filters = self._retrained(image, positions, flags)
-            return [positions, flags, scores, *filters], profile
-        return self.step_graph(image, previous, positions, flags, *filters), reference
+            return [positions, flags, scores, means, *filters], profile
+        return self.step_graph(image, previous, positions, flags, means, *filters), reference
 
 
 def _blurred(image: np.ndarray, variance: float) -> np.ndarray:

@@ -6,11 +6,13 @@ estimate (one gather for all points), correlate with that level's filter, find t
 levels weighted by a Gaussian prior around the coarser estimate) and add the scaled shift; the filters'
 regulariser grows with the frame's noise (estimated once per frame) against each patch's
 contrast, so frequencies that hold only noise in a blurred or dark patch do not move the peak. Points that leave
-the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is weak against the frame's other
-points and that either do not track back to where they came from (a forward-backward test on level 0) or whose
-unweighted level-0 peak lies elsewhere than the prior's choice (an ambiguous match) are flagged lost and frozen
-at their last position. Both cues are needed: each alone fires on correct tracks in dark, blurred or
-compressed frames, and a false alarm is final; together they still catch most points that an occluder covers.
+the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is weak, both against the frame's
+other points and against the point's own PSR history, and that either do not track back to where they came from
+(a forward-backward test on level 0) or whose unweighted level-0 peak lies elsewhere than the prior's choice (an
+ambiguous match) are flagged lost and frozen at their last position. The cues are needed together: each alone
+fires on correct tracks in dark, blurred or compressed frames or, frame after frame, on points whose texture
+always gives a low PSR, and a false alarm is final; together they still catch many of the points that an
+occluder covers.
 Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position: the search
 sample shifted in the Fourier domain. Before all this, a frame whose blur differs from that of the frame the
 filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
@@ -145,7 +147,8 @@ def _per_level(value, levels: int, name: str, kind: type = int) -> tuple:
 
 @dataclass
 class TrackerState:
-    """Tracker state: the last frame ``(1, 1, H, W)``, positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)``
+    """Tracker state: the last frame ``(1, 1, H, W)``, positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)``,
+    each point's running geometric-mean PSR ``(P,)`` (inf before its first step, :meth:`PointTracker._psr_mean`)
     and per pyramid level (finest first) the filters ``(3, 2M + 1, P, M + 1)``: real and imaginary parts of the
     numerators ``A`` and the denominators ``B`` of the level's band-limited half spectra (``M`` = the level's
     band), point-interleaved. With blur matching, ``reference`` is the radial power profile ``(1, 3, bins)``
@@ -156,6 +159,7 @@ class TrackerState:
     positions: Tensor
     lost: Tensor
     psr: Tensor
+    psr_mean: Tensor
     filters: tuple[Tensor, ...]
     reference: Tensor | None = None
     profile: Tensor | None = None
@@ -180,8 +184,10 @@ class PointTracker(nn.Module):
         compression blocks or a neighbouring structure than a correction; the weighting keeps such peaks from
         pulling the point away. Sub-pixel refinement and the PSR use the unweighted map. None: 3 px at the two finest
         levels, free search at the others (the large motion is found there).
-        psr_relative, fb_threshold, psr_threshold: a point is lost when its level-0 PSR falls below
+        psr_relative, psr_rate, fb_threshold, psr_threshold: a point is lost when its level-0 PSR falls below
         ``psr_relative`` times the geometric mean PSR of the frame's tracked points (:meth:`_lost_threshold`)
+        and below ``psr_relative`` times its own running geometric-mean PSR (the newest PSR weighted
+        ``psr_rate`` against the mean of the frames before; None: the frame test alone, :meth:`_psr_mean`)
         and either tracking it back to the previous frame misses by more than ``fb_threshold`` px
         (:meth:`_backward_error`) or its unweighted level-0 peak is more than ``fb_threshold`` px from the peak
         the displacement prior chose (None: the PSR test alone), or when its PSR is below ``psr_threshold``
@@ -209,6 +215,7 @@ class PointTracker(nn.Module):
         search_sigma: float | tuple[float, ...] | None = None,
         psr_threshold: float = 2.5,
         psr_relative: float = 0.3,
+        psr_rate: float | None = 0.3,
         fb_threshold: float | None = 1.0,
         psr_exclude: int = 7,
         band: float | tuple[float, ...] = 0.7,
@@ -231,6 +238,9 @@ class PointTracker(nn.Module):
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
         self.psr_relative, self.fb_threshold = psr_relative, fb_threshold
+        if psr_rate is not None and not 0 < psr_rate <= 1:
+            raise InputError(f"psr_rate must lie in (0, 1] or be None, got {psr_rate}")
+        self.psr_rate = psr_rate
         if not noise_reg >= 0:
             raise InputError(f"noise_reg must be a non-negative number, got {noise_reg}")
         self.noise_reg = noise_reg
@@ -345,7 +355,7 @@ class PointTracker(nn.Module):
             for lv in range(self.levels)
         )
         psr = torch.full_like(points[:, 0], float("inf"))
-        return TrackerState(frame, torch.where(lost.unsqueeze(-1), points, positions), lost, psr, filters)
+        return TrackerState(frame, torch.where(lost.unsqueeze(-1), points, positions), lost, psr, psr, filters)
 
     def _peak(self, spectrum: Tensor, score: Tensor, argmax: tuple[Tensor, Tensor, Tensor], level: int) -> Tensor:
         """Sub-pixel shift ``(P, 2)`` (x, y) of the score maximum at ``level`` (``spectrum``: ``[re | im]``
@@ -368,16 +378,17 @@ class PointTracker(nn.Module):
         return zr * pr - zi * pi, zr * pi + zi * pr
 
     def forward(
-        self, frame: Tensor, previous: Tensor, positions: Tensor, lost: Tensor, *filters: Tensor
+        self, frame: Tensor, previous: Tensor, positions: Tensor, lost: Tensor, psr_mean: Tensor, *filters: Tensor
     ) -> tuple[Tensor, ...]:
         """One tracking step (exportable: real tensors in and out).
 
         Args:
             frame: ``(1, 1, H, W)`` gray frame; previous: the frame before it (same size, for the
-            forward-backward test). positions: ``(P, 2)``. lost: ``(P,)`` bool.
-            filters: per level, finest first, ``(3, 2M + 1, P, M + 1)`` (see :class:`TrackerState`).
+            forward-backward test). positions: ``(P, 2)``. lost: ``(P,)`` bool. psr_mean: ``(P,)`` each point's
+            running geometric-mean PSR (inf: none yet). filters: per level, finest first, ``(3, 2M + 1, P, M + 1)``
+            (see :class:`TrackerState`).
         Returns:
-            positions, lost, psr ``(P,)`` and the filters after this frame.
+            positions, lost, psr ``(P,)``, psr_mean and the filters after this frame.
         """
         pyramid = image_pyramid(frame, self.levels)
         noise = self._noise_variance(frame)
@@ -406,12 +417,15 @@ class PointTracker(nn.Module):
         sample = self._shift(*spectra[0], moved - centres[0], 0)
         lost = lost | ~self._inside(moved, frame)
         weak = ~(psr >= self._lost_threshold(psr, lost))
+        if self.psr_rate is not None:  # and weak against the point's own history (always, before it has one)
+            weak = weak & ~(psr >= self.psr_relative * psr_mean)
         if self.fb_threshold is not None:
             # a weak point whose unweighted level-0 peak lies elsewhere than the prior's choice is ambiguous;
             # the other weak points take the forward-backward test
             ambiguous = weak & (_peak_gap(psr_argmax, argmax, score.shape[0]) > self.fb_threshold)
             weak = ambiguous | self._fails_backward(weak & ~ambiguous, previous, start, *sample, noise)
         lost = lost | weak | ~(psr >= self.psr_threshold)
+        psr_mean = self._psr_mean(psr_mean, psr, lost)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
         target = torch.where(lost.unsqueeze(-1), start, moved)
         eta = torch.where(lost, torch.zeros_like(psr), torch.full_like(psr, self.eta))
@@ -419,7 +433,7 @@ class PointTracker(nn.Module):
         for level in range(1, self.levels):
             shift = (target + 0.5) / 2**level - 0.5 - centres[level]
             updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
-        return positions, lost, psr, *updated
+        return positions, lost, psr, psr_mean, *updated
 
     def _fails_backward(
         self, weak: Tensor, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor, noise: Tensor | None = None
@@ -473,6 +487,18 @@ class PointTracker(nn.Module):
         mean = torch.exp(log_psr.sum() / tracked.sum().clamp_min(1))
         return self.psr_relative * mean
 
+    def _psr_mean(self, psr_mean: Tensor, psr: Tensor, lost: Tensor) -> Tensor:
+        """Each point's running geometric-mean PSR ``(P,)`` after a frame with PSR ``psr`` ``(P,)``: ``mean^(1 - r)
+        psr^r`` (``r = psr_rate``), the PSR itself for a point without history (inf); points lost in this frame
+        keep theirs. A point whose texture always gives a low PSR is weak against the frame's other points in
+        every frame, and every frame's forward-backward test is another chance of a false alarm; against its own
+        history it is weak only when its match collapses, as under an occluder."""
+        if self.psr_rate is None:
+            return psr_mean
+        psr = psr.clamp_min(1e-3)
+        new = torch.where(torch.isinf(psr_mean), psr, torch.exp(_lerp(psr_mean.log(), psr.log(), self.psr_rate)))
+        return torch.where(lost | ~torch.isfinite(psr), psr_mean, new)
+
     def step(self, frame: Tensor, state: TrackerState, compile: bool = False) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``; ``compile``: run :meth:`forward` through
         ``torch.compile`` (see :meth:`track`)."""
@@ -485,14 +511,16 @@ class PointTracker(nn.Module):
     @staticmethod
     def _advance(forward, frame: Tensor, state: TrackerState) -> TrackerState:
         """One :meth:`forward` (or its compiled form) from ``state`` into ``frame`` ``(1, 1, H, W)``."""
-        positions, lost, psr, *filters = forward(frame, state.frame, state.positions, state.lost, *state.filters)
-        return TrackerState(frame, positions, lost, psr, tuple(filters))
+        positions, lost, psr, psr_mean, *filters = forward(
+            frame, state.frame, state.positions, state.lost, state.psr_mean, *state.filters
+        )
+        return TrackerState(frame, positions, lost, psr, psr_mean, tuple(filters))
 
     def _retrained(self, frame: Tensor, state: TrackerState) -> TrackerState:
         """``state`` with every point's filters trained afresh on ``frame`` ``(1, 1, H, W)`` at its positions (lost
         points stay lost)."""
         fresh = self.init(frame[0, 0], state.positions)
-        return replace(fresh, lost=fresh.lost | state.lost, psr=state.psr)
+        return replace(fresh, lost=fresh.lost | state.lost, psr=state.psr, psr_mean=state.psr_mean)
 
     def _blur_matched_step(self, forward, frame: Tensor, state: TrackerState) -> TrackerState:
         """:meth:`forward` with the frame and the filters brought to one blur level (``blur_match``).

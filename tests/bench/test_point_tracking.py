@@ -90,6 +90,33 @@ def test_homography_rows_per_image_and_condition(tmp_path, capsys):
         point_tracking.main(["--homography", str(tmp_path / "missing.png"), "--json"])
 
 
+def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
+    """``--roundtrip DIR``: the first ``--roundtrip-frames`` frames, then back to the first; the truth at the last
+    frame is the start; too short a video or too few frames is refused with the folder's name."""
+    import cv2
+
+    rng = np.random.default_rng(1)
+    texture = cv2.GaussianBlur(rng.normal(128, 40, (120, 160)), (0, 0), 1.5).clip(0, 255)
+    for t in range(5):  # content moving 2 px right per frame
+        cv2.imwrite(str(tmp_path / f"{t:05d}.png"), np.roll(texture, 2 * t, axis=1)[:, 10:-10].astype(np.uint8))
+    data = point_tracking.roundtrip_dataset(tmp_path, 4, 50)
+    order = [0, 1, 2, 3, 2, 1, 0]
+    assert len(data.frames) == 7
+    for frame, t in zip(data.frames, order, strict=True):
+        np.testing.assert_array_equal(frame, cv2.imread(str(tmp_path / f"{t:05d}.png"), cv2.IMREAD_GRAYSCALE))
+    np.testing.assert_array_equal(data.truth, data.points)
+    assert data.valid.all() and 0 < len(data.points) <= 50
+    argv = ["--roundtrip", str(tmp_path), "--roundtrip-frames", "3", "--points", "40", "--methods", "ccot", "klt",
+            "--repeats", "1", "--json"]
+    assert point_tracking.main(argv) == 0
+    row = json.loads(capsys.readouterr().out)["datasets"][f"roundtrip_{tmp_path.name}"]
+    assert row["frames"] == 5 and row["methods"]["klt"]["inlier_frac"] > 0.8  # a pure translation comes back
+    with pytest.raises(InputError, match=f"{tmp_path.name}.*asks for 6"):
+        point_tracking.roundtrip_dataset(tmp_path, 6, 50)
+    with pytest.raises(InputError, match="at least 2 frames"):
+        point_tracking.roundtrip_dataset(tmp_path, 1, 50)
+
+
 def test_tracker_settings_reach_the_dcf_trackers(capsys):
     """``--tracker`` sets PointTracker arguments (here one that changes the tracks); an unknown one is refused."""
     base = ["--synthetic", "--frames", "4", "--points", "80", "--methods", "ccot", "--repeats", "1", "--json"]

@@ -28,7 +28,7 @@ def test_step_and_init_graphs_match_pytorch(tracking_bundle) -> None:
         assert (~ref[1]).sum() > points // 2  # most points really tracked, so the comparison is meaningful
         state = tracker.init(args[1][0, 0], args[2])
         got = init(args[1].numpy(), args[2].numpy())
-        for a, b in zip(got[3:], state.filters, strict=True):
+        for a, b in zip(got[4:], state.filters, strict=True):
             np.testing.assert_allclose(a, b.numpy(), rtol=1e-4, atol=1e-4 * float(b.abs().max()))
     assert bundle.section("settings")["method"] == "ccot" and bundle.section("thresholds")["psr_threshold"] == 2.5
 

@@ -151,6 +151,62 @@ def test_weak_peak_threshold_is_relative_to_the_geometric_mean_psr():
     assert tracker._lost_threshold(psr, lost).item() == pytest.approx(expected, rel=1e-6)
 
 
+def test_psr_mean_is_a_running_geometric_mean():
+    """Against a loop over the frames: a point's first finite PSR starts its mean, each later one enters the log
+    mean with weight ``psr_rate``, and a frame in which the point is lost or has no finite PSR leaves it alone."""
+    rate = 0.25
+    tracker = PointTracker("ccot", psr_rate=rate)
+    nan = float("nan")
+    psr = torch.tensor([[12.0, 5.0, nan], [8.0, 9.0, 2.0], [20.0, nan, 6.0], [4.0, 16.0, 3.0]], dtype=torch.float64)
+    lost = torch.tensor([[False, False, False], [False, False, True], [False, False, False], [True, False, False]])
+    mean = torch.full((3,), float("inf"), dtype=torch.float64)
+    expected = [float("inf")] * 3
+    for t in range(4):
+        mean = tracker._psr_mean(mean, psr[t], lost[t])
+        for p in range(3):
+            value = psr[t, p].item()
+            if lost[t, p] or not math.isfinite(value):
+                continue
+            old = expected[p]
+            expected[p] = value if math.isinf(old) else math.exp((1 - rate) * math.log(old) + rate * math.log(value))
+        torch.testing.assert_close(mean, torch.tensor(expected, dtype=torch.float64))
+    off = PointTracker("ccot", psr_rate=None)._psr_mean(mean, psr[0], lost[0])
+    assert torch.equal(off, mean)  # without the history test the means are never touched
+    for value in (0.0, -0.1, 1.5, float("nan")):
+        with pytest.raises(InputError, match="psr_rate"):
+            PointTracker("ccot", psr_rate=value)
+
+
+def test_weak_points_are_tested_only_below_their_own_psr_history(monkeypatch):
+    """A point weak against the frame's other points takes the forward-backward test (here made to fail always)
+    only while its PSR is also below ``psr_relative`` times its own running mean: with no history yet (inf) every
+    frame-weak point is tested, with a history equal to its present PSR none, with one ten times higher all
+    again; ``psr_rate=None`` tests them whatever the history."""
+    gen = torch.Generator().manual_seed(4)
+    img = _smooth_image(160, 160, 11)
+    moved = _translate(img, 2.0, 1.0)
+    moved[:, :60] += 25 * torch.randn(160, 60, generator=gen, dtype=torch.float64)  # noisy left: weak peaks there
+    grid = torch.arange(20.0, 141.0, 15.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    results = {}
+    for rate in (0.3, None):
+        tracker = PointTracker("ccot", psr_rate=rate).double()
+        monkeypatch.setattr(tracker, "_fails_backward", lambda weak, *args: weak)
+        state = tracker.init(img, points)
+        _, _, psr, *_ = tracker(moved[None, None], img[None, None], state.positions, state.lost, state.psr_mean,
+                                *state.filters)
+        frame_weak = psr < tracker._lost_threshold(psr, state.lost)
+        floor = ~(psr >= tracker.psr_threshold)
+        for name, history in (("none", state.psr_mean), ("same", psr), ("higher", 10 * psr)):
+            lost = tracker(moved[None, None], img[None, None], state.positions, state.lost, history,
+                           *state.filters)[1]
+            results[rate, name] = lost
+        assert 0 < frame_weak.sum() < len(points) // 2 and not (floor & ~frame_weak).any()
+    assert torch.equal(results[0.3, "none"], frame_weak) and torch.equal(results[0.3, "higher"], frame_weak)
+    assert not results[0.3, "same"].any()
+    assert all(torch.equal(results[None, name], frame_weak) for name in ("none", "same", "higher"))
+
+
 def test_occluded_point_is_lost_while_the_others_are_kept():
     """An opaque patch of other texture slides over one point between two frames: its peak collapses and it does
     not track back home, so it is flagged lost; the visible points, some in a darker and blurred copy of the
