@@ -38,6 +38,9 @@ bench: $(STAMP)
 	$(PY) -m bench.point_tracking --sintel $(SHARED)/sintel/alley_1/clean $(SHARED)/sintel/alley_1/final \
 		$(wildcard $(SHARED)/middlebury/*) --synthetic --stress --methods ccot mosse klt --json \
 		--plot docs/figures/point_tracking.png
+	$(PY) -m bench.point_tracking --roundtrip $(wildcard $(SHARED)/davis2016/JPEGImages/240p/*) \
+		--methods ccot mosse klt --json --plot outputs/point_tracking_roundtrip.png
+	cp outputs/point_tracking_roundtrip_conditions.png docs/figures/
 	$(PY) -m bench.localization --json --plot docs/figures/localization.png
 	$(PY) -m bench.vos --synthetic --json
 

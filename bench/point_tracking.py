@@ -327,7 +327,7 @@ def plot_conditions(result: dict, path: str | Path) -> None:
             ax.bar(x + (i - (len(methods) - 1) / 2) * width, values, width, label=method)
     axes[0].set(ylabel="inliers (not lost, EPE < 3 px)", ylim=(0, 1), title="per dataset and condition")
     axes[1].set(ylabel="mean inlier EPE (px)")
-    labels = [n.replace("stress_", "").replace("homography_", "h_") for n in names]
+    labels = [n.replace("stress_", "").replace("homography_", "h_").replace("roundtrip_", "") for n in names]
     axes[1].set_xticks(x, labels, rotation=30, ha="right")
     axes[0].legend(fontsize=8, ncol=len(methods))
     fig.tight_layout()
