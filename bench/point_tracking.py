@@ -13,7 +13,9 @@ without ground truth played forward and back (``--roundtrip DIR ...``, e.g. the 
 ``roundtrip_<folder>``: the first ``--roundtrip-frames`` frames, then the same frames in reverse order back to the
 first, so every point's truth at the last frame is its start; this measures the drift and the false tracks
 that real motion, motion blur and deformation cause over many frames, but it would also reward a tracker that
-never moves, so it complements the sets with ground truth rather than replacing them). Metrics at the
+never moves, so it complements the sets with ground truth rather than replacing them; ``--roundtrip-conditions``
+adds copies of every frame degraded as the homography sets' last frame is, or at ``--roundtrip-strength``, named
+``roundtrip_<condition>_<folder>``). Metrics at the
 last frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px),
 ``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
 ``point_frames_per_s``, ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per
@@ -58,6 +60,7 @@ from core.threads import cpu_threads
 from data.flow import (
     HOMOGRAPHY_CONDITIONS,
     STRESS_CONDITIONS,
+    degrade,
     homography_sequence,
     read_sintel_sequence,
     stress_sequence,
@@ -140,15 +143,21 @@ def homography_dataset(image: str | Path, condition: str, n_points: int, seed: i
     return Dataset(frames_u8, points, tracks[-1], valid[-1])
 
 
-def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing: int = 3) -> Dataset:
+def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing: int = 3, condition: str = "none",
+                      strength: float = 1.0, seed: int = 0) -> Dataset:
     """The first ``n_frames`` frames of a real video (a folder of images, :func:`~core.frames.read_frames`) and
-    then the same frames back to the first (``2 n_frames - 1`` in all); the truth at the last frame is the start
-    points themselves."""
+    then the same frames back to the first (``2 n_frames - 1`` in all), every frame degraded by ``condition`` at
+    ``strength`` (:func:`data.flow.degrade`, seeded; ``motion`` in one direction drawn from the seed); the truth
+    at the last frame is the start points themselves."""
     if n_frames < 2:
         raise InputError(f"a round trip needs at least 2 frames, got {n_frames}")
     frames, paths = read_frames(folder)
     if len(frames) < n_frames:
         raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames}")
+    if condition != "none":
+        rng = np.random.default_rng([seed, HOMOGRAPHY_CONDITIONS.index(condition)])
+        angle = rng.uniform(0, np.pi)
+        frames = [degrade(frame, condition, strength, rng, angle) for frame in frames[:n_frames]]
     forward = np.stack(frames[:n_frames]).round().clip(0, 255).astype(np.uint8)
     frames = np.concatenate([forward, forward[-2::-1]])
     points = detect(frames[0], n_points, spacing)
@@ -442,6 +451,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="real video frame folders to track forward and back to the first frame")
     parser.add_argument("--roundtrip-frames", type=int, default=12,
                         help="frames of each round-trip video played forward (then back)")
+    parser.add_argument("--roundtrip-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS, default=["none"],
+                        metavar="CONDITION", help="degradations of the round-trip videos, each a set of rows: "
+                        + ", ".join(HOMOGRAPHY_CONDITIONS))
+    parser.add_argument("--roundtrip-strength", type=float, default=1.0,
+                        help="strength in [0, 1] of the round-trip degradations (1: the homography sets' last frame)")
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
@@ -487,9 +501,11 @@ def main(argv: list[str] | None = None) -> int:
                 path = Path(image)
                 name = f"homography_{condition}_{path.parent.name}_{path.stem}"
                 datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing)
-        for folder in args.roundtrip:
-            name = f"roundtrip_{Path(folder).name}"
-            datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing)
+        for condition in args.roundtrip_conditions if args.roundtrip else []:
+            for folder in args.roundtrip:
+                name = "_".join(["roundtrip", *([condition] if condition != "none" else []), Path(folder).name])
+                datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing,
+                                                   condition, args.roundtrip_strength, args.seed)
         if args.synthetic or not (datasets or args.stress is not None):
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
         for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:

@@ -5,7 +5,7 @@ real photographs seen through chains of homographies under growing blur, compres
 
 from data.flow.flo import read_flo, write_flo
 from data.flow.ground_truth import divergent_flow_mask, sample_bilinear, tracks_from_flow
-from data.flow.homography import HOMOGRAPHY_CONDITIONS, HomographySequence, homography_sequence
+from data.flow.homography import HOMOGRAPHY_CONDITIONS, HomographySequence, degrade, homography_sequence
 from data.flow.sintel import SintelPair, read_sintel_pair, read_sintel_sequence
 from data.flow.stress import STRESS_CONDITIONS, stress_sequence
 from data.flow.synthetic import SyntheticSequence, synthetic_sequence
@@ -16,6 +16,7 @@ __all__ = [
     "STRESS_CONDITIONS",
     "SintelPair",
     "SyntheticSequence",
+    "degrade",
     "divergent_flow_mask",
     "homography_sequence",
     "read_flo",

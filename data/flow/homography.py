@@ -83,9 +83,16 @@ def streak_kernel(length: float, angle: float) -> np.ndarray:
     return (kernel / kernel.sum()).astype(np.float32)
 
 
-def _degrade(image: np.ndarray, condition: str, strength: float, rng: np.random.Generator, angle: float) -> np.ndarray:
-    """One frame ``(H, W)`` float32 in [0, 255] at degradation ``strength`` in [0, 1], noisy and 8-bit rounded
-    (``angle``: the motion blur's direction)."""
+def degrade(
+    image: np.ndarray, condition: str, strength: float, rng: np.random.Generator, angle: float = 0.0
+) -> np.ndarray:
+    """A gray frame ``(H, W)`` in [0, 255] under ``condition`` (one of :data:`HOMOGRAPHY_CONDITIONS`) at
+    ``strength`` in [0, 1] (the scales of the module docstring), with sensor noise of std 1 from ``rng`` and 8-bit
+    rounding, as float32 (``angle``: the motion blur's direction in radians)."""
+    if condition not in HOMOGRAPHY_CONDITIONS:
+        raise InputError(f"unknown condition {condition!r}; choose one of {', '.join(HOMOGRAPHY_CONDITIONS)}")
+    if not 0 <= strength <= 1:
+        raise InputError(f"the degradation's strength must lie in [0, 1], got {strength}")
     if condition == "blur":
         image = cv2.GaussianBlur(image, (0, 0), 0.3 + 3.7 * strength)
     elif condition == "motion":
@@ -121,5 +128,5 @@ def homography_sequence(
     source = image.astype(np.float32)
     views = [cv2.warpPerspective(source, h, (width, height), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
              for h in chain]
-    out = np.stack([_degrade(v, condition, t / (frames - 1), rng, angle) for t, v in enumerate(views)])
+    out = np.stack([degrade(v, condition, t / (frames - 1), rng, angle) for t, v in enumerate(views)])
     return HomographySequence(out, chain)

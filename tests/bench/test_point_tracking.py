@@ -111,6 +111,18 @@ def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
     assert point_tracking.main(argv) == 0
     row = json.loads(capsys.readouterr().out)["datasets"][f"roundtrip_{tmp_path.name}"]
     assert row["frames"] == 5 and row["methods"]["klt"]["inlier_frac"] > 0.8  # a pure translation comes back
+    dark = point_tracking.roundtrip_dataset(tmp_path, 4, 50, condition="light", strength=1.0, seed=2)
+    again = point_tracking.roundtrip_dataset(tmp_path, 4, 50, condition="light", strength=1.0, seed=2)
+    np.testing.assert_array_equal(dark.frames, again.frames)  # seeded
+    np.testing.assert_array_equal(dark.frames[2], dark.frames[4])  # the way back shows the same degraded frames
+    ratio = dark.frames.mean() / data.frames.mean()
+    assert 0.05 < ratio < 0.15  # exposure 0.15 and gamma 1.3 of the homography sets' darkest frame
+    argv += ["--roundtrip-conditions", "none", "light"]
+    assert point_tracking.main(argv) == 0
+    names = set(json.loads(capsys.readouterr().out)["datasets"])
+    assert names == {f"roundtrip_{tmp_path.name}", f"roundtrip_light_{tmp_path.name}"}
+    with pytest.raises(InputError, match="strength"):
+        point_tracking.roundtrip_dataset(tmp_path, 4, 50, condition="light", strength=1.5)
     with pytest.raises(InputError, match=f"{tmp_path.name}.*asks for 6"):
         point_tracking.roundtrip_dataset(tmp_path, 6, 50)
     with pytest.raises(InputError, match="at least 2 frames"):

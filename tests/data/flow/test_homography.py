@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from data.flow import HOMOGRAPHY_CONDITIONS, homography_sequence
+from data.flow import HOMOGRAPHY_CONDITIONS, degrade, homography_sequence
 from data.flow.homography import streak_kernel
 
 
@@ -93,3 +93,12 @@ def test_motion_blur_smears_one_direction_only():
         last[name] = [np.abs(cv2.Sobel(frames[-1], cv2.CV_32F, dx, 1 - dx)).mean() for dx in (1, 0)]  # |d/dx|, |d/dy|
     assert last["along x"][0] < 0.6 * last["along y"][0]  # the x-derivative suffers from a streak along x
     assert last["along y"][1] < 0.6 * last["along x"][1]
+
+
+def test_degrade_refuses_unknown_conditions_and_strengths():
+    rng = np.random.default_rng(0)
+    with pytest.raises(InputError, match="fog"):
+        degrade(_image(), "fog", 0.5, rng)
+    for strength in (-0.1, 1.2, float("nan")):
+        with pytest.raises(InputError, match="strength"):
+            degrade(_image(), "blur", strength, rng)
