@@ -14,8 +14,8 @@ without ground truth played forward and back (``--roundtrip DIR ...``, e.g. the 
 first, so every point's truth at the last frame is its start; this measures the drift and the false tracks
 that real motion, motion blur and deformation cause over many frames, but it would also reward a tracker that
 never moves, so it complements the sets with ground truth rather than replacing them; ``--roundtrip-conditions``
-adds copies of every frame degraded as the homography sets' last frame is, or at ``--roundtrip-strength``, named
-``roundtrip_<condition>_<folder>``). Metrics at the
+adds sets of rows with every frame degraded as in the homography sets, at ``--roundtrip-strength`` (1: as their
+last frame), named ``roundtrip_<condition>_<folder>``). Metrics at the
 last frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px),
 ``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
 ``point_frames_per_s``, ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per
@@ -151,7 +151,7 @@ def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing:
     at the last frame is the start points themselves."""
     if n_frames < 2:
         raise InputError(f"a round trip needs at least 2 frames, got {n_frames}")
-    frames, paths = read_frames(folder)
+    frames, _ = read_frames(folder)
     if len(frames) < n_frames:
         raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames}")
     if condition != "none":
