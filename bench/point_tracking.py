@@ -151,14 +151,14 @@ def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing:
     at the last frame is the start points themselves."""
     if n_frames < 2:
         raise InputError(f"a round trip needs at least 2 frames, got {n_frames}")
-    frames, _ = read_frames(folder)
+    frames, _ = read_frames(folder, limit=n_frames)  # the frames played, not the whole video
     if len(frames) < n_frames:
         raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames}")
     if condition != "none":
         rng = np.random.default_rng([seed, HOMOGRAPHY_CONDITIONS.index(condition)])
         angle = rng.uniform(0, np.pi)
-        frames = [degrade(frame, condition, strength, rng, angle) for frame in frames[:n_frames]]
-    forward = np.stack(frames[:n_frames]).round().clip(0, 255).astype(np.uint8)
+        frames = [degrade(frame, condition, strength, rng, angle) for frame in frames]
+    forward = np.stack(frames).round().clip(0, 255).astype(np.uint8)
     frames = np.concatenate([forward, forward[-2::-1]])
     points = detect(frames[0], n_points, spacing)
     return Dataset(frames, points, points.astype(np.float64), np.ones(len(points), dtype=bool))

@@ -38,9 +38,10 @@ def frame_paths(spec: str | Path) -> list[Path]:
     return files
 
 
-def read_frames(spec: str | Path) -> tuple[list[np.ndarray], list[Path]]:
-    """Gray frames ``(H, W)`` float32 in [0, 255] of a folder or glob, all of one size, and their paths."""
-    paths = frame_paths(spec)
+def read_frames(spec: str | Path, limit: int | None = None) -> tuple[list[np.ndarray], list[Path]]:
+    """Gray frames ``(H, W)`` float32 in [0, 255] of a folder or glob, all of one size, and their paths (the first
+    ``limit`` only, if given)."""
+    paths = frame_paths(spec)[:limit]
     frames = [read_frame_gray(p) for p in paths]
     for path, frame in zip(paths, frames, strict=True):
         if frame.shape != frames[0].shape:
