@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from core.errors import InputError
+from core.streak import streak_blur
 
 HOMOGRAPHY_CONDITIONS = ("blur", "jpeg", "light", "none", "motion")
 _MARGIN = 6.0  # px a valid point keeps from the frame border
@@ -69,20 +70,6 @@ def _homographies(rng: np.random.Generator, frames: int, width: int, height: int
     return np.stack(chain)
 
 
-def streak_kernel(length: float, angle: float) -> np.ndarray:
-    """Motion-blur kernel: a straight streak of ``length`` px at ``angle`` radians (x towards y) through the
-    centre of an odd square, as the mean of 256 bilinear splats along it; sums to 1."""
-    half = int(np.ceil(length / 2)) + 1
-    kernel = np.zeros((2 * half + 1, 2 * half + 1), np.float64)
-    t = np.linspace(-length / 2, length / 2, 256)
-    x, y = half + t * np.cos(angle), half + t * np.sin(angle)
-    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
-    fx, fy = x - x0, y - y0
-    for dy, dx, weight in ((0, 0, (1 - fx) * (1 - fy)), (0, 1, fx * (1 - fy)), (1, 0, (1 - fx) * fy), (1, 1, fx * fy)):
-        np.add.at(kernel, (y0 + dy, x0 + dx), weight)
-    return (kernel / kernel.sum()).astype(np.float32)
-
-
 def degrade(
     image: np.ndarray, condition: str, strength: float, rng: np.random.Generator, angle: float = 0.0
 ) -> np.ndarray:
@@ -96,7 +83,7 @@ def degrade(
     if condition == "blur":
         image = cv2.GaussianBlur(image, (0, 0), 0.3 + 3.7 * strength)
     elif condition == "motion":
-        image = cv2.filter2D(image, -1, streak_kernel(1 + 11 * strength, angle), borderType=cv2.BORDER_REFLECT)
+        image = streak_blur(image, 1 + 11 * strength, angle, cv2.BORDER_REFLECT)
     elif condition == "light":
         image = 255 * (image * (1 - 0.85 * strength) / 255) ** (1 + 0.3 * strength)
     image = np.clip(image + rng.normal(0, 1.0, image.shape), 0, 255).round().astype(np.uint8)

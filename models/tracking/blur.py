@@ -33,7 +33,7 @@ def _check_images(image: Tensor, name: str) -> None:
         raise InputError(f"{name} needs (B, 1, H, W) gray images with H, W >= 8, got {tuple(image.shape)}")
 
 
-def _hann(n: int, like: Tensor) -> Tensor:
+def symmetric_hann(n: int, like: Tensor) -> Tensor:
     """Symmetric Hann window of ``n`` samples (``torch.hann_window(n, periodic=False)``, written out so that an
     exported graph keeps ``n`` dynamic)."""
     return 0.5 - 0.5 * torch.cos(torch.arange(n, device=like.device).to(like.dtype) * (2 * math.pi / (n - 1)))
@@ -63,7 +63,7 @@ def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4, r
     if reduce > 1:
         image = F.avg_pool2d(image, reduce)
     h, w = image.shape[-2:]
-    window = _hann(h, image)[:, None] * _hann(w, image)
+    window = symmetric_hann(h, image)[:, None] * symmetric_hann(w, image)
     mean = (image * window).sum((-2, -1), keepdim=True) / window.sum()
     spectrum = torch.fft.rfft2(((image - mean) * window)[:, 0])
     power = (spectrum.real.square() + spectrum.imag.square()).flatten(1)  # (B, H (W // 2 + 1))

@@ -17,7 +17,11 @@ Then the filters of the points still tracked learn, with weight ``eta``, a sampl
 sample shifted in the Fourier domain. Before all this, a frame whose blur differs from that of the frame the
 filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
 matched to it: the sharper of the two views is blurred to the other's level (:meth:`_blur_matched_step`), since a
-sharp template matched against a blurred view is biased at every asymmetric structure.
+sharp template matched against a blurred view is biased at every asymmetric structure. Straight motion blur
+(a streak, found in each frame's power cepstrum, :mod:`~models.tracking.motion_blur`) is matched exactly instead:
+the filters are retrained on the previous frame blurred by this frame's streak and the search runs on this frame
+blurred by the previous frame's (:meth:`_streak_matched_step`), since a Gaussian stand-in for a streak leaves
+about a pixel of scatter along it.
 
 Cost: the patches are small (default 21 px at level 0, which sets the accuracy, and 15 px on three coarser levels,
 the coarsest of which bounds the largest motion at about 60 px per frame), the filters keep only the lower 70 % of
@@ -44,6 +48,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 import torch.nn.functional as F
+from kornia.filters import filter2d
 from torch import Tensor, nn
 from tqdm import tqdm
 
@@ -52,7 +57,9 @@ from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, ga
 from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
+from core.streak import streak_kernel
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
+from models.tracking.motion_blur import motion_blur_streak
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 
 METHODS = ("ccot", "ccot_ff", "mosse")
@@ -145,6 +152,19 @@ def _per_level(value, levels: int, name: str, kind: type = int) -> tuple:
     return values
 
 
+Streak = tuple[float, float]  # straight motion blur: length in px, angle in rad (x towards y)
+
+
+def _streak_covariance(streaks: Iterable[Streak]) -> tuple[float, float, float]:
+    """Covariance ``(xx, xy, yy)`` in px^2 of the blur of a sequence of streaks (each ``L^2 / 12`` along its
+    direction; the covariances of convolved kernels add)."""
+    xx = xy = yy = 0.0
+    for length, angle in streaks:
+        variance, c, s = length * length / 12, math.cos(angle), math.sin(angle)
+        xx, xy, yy = xx + variance * c * c, xy + variance * c * s, yy + variance * s * s
+    return xx, xy, yy
+
+
 @dataclass
 class TrackerState:
     """Tracker state: the last frame ``(1, 1, H, W)``, positions ``(P, 2)``, lost ``(P,)`` bool, last PSR ``(P,)``,
@@ -153,7 +173,9 @@ class TrackerState:
     numerators ``A`` and the denominators ``B`` of the level's band-limited half spectra (``M`` = the level's
     band), point-interleaved. With blur matching, ``reference`` is the radial power profile ``(1, 3, bins)``
     (:func:`~models.tracking.blur.radial_power_profile`) of the frame the filters were last trained afresh on and
-    ``profile`` that of ``frame`` (None: not measured yet)."""
+    ``profile`` that of ``frame`` (None: not measured yet). With streak matching, ``streak`` is the straight motion
+    blur ``(length px, angle rad)`` found in ``frame`` (None: none) and ``template`` the streaks that blur the views
+    the filters were last trained afresh on (:meth:`PointTracker._streak_matched_step`)."""
 
     frame: Tensor
     positions: Tensor
@@ -163,6 +185,8 @@ class TrackerState:
     filters: tuple[Tensor, ...]
     reference: Tensor | None = None
     profile: Tensor | None = None
+    streak: Streak | None = None
+    template: tuple[Streak, ...] = ()
 
 
 class PointTracker(nn.Module):
@@ -201,6 +225,10 @@ class PointTracker(nn.Module):
         has less signal than noise do not steer the peak (a Wiener filter's regulariser, over-weighted).
         blur_match: blur variance (px^2) between a frame and the frame the filters were trained on above which
         the two are matched before the search (:meth:`step`); None: never.
+        streak_score: cepstral score (:func:`~models.tracking.motion_blur.motion_blur_streak`) below which a frame
+        counts as blurred by a straight streak, which is then matched exactly (:meth:`_streak_matched_step`);
+        None: streaks are treated as any other blur. The default, -10, lies between the scores of the
+        frames of the shared real videos (-3 to -8) and those of streaks of 5 px and longer (-11 to -25).
     """
 
     def __init__(
@@ -221,6 +249,7 @@ class PointTracker(nn.Module):
         band: float | tuple[float, ...] = 0.7,
         noise_reg: float = 30.0,
         blur_match: float | None = 2.0,
+        streak_score: float | None = -10.0,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -247,6 +276,9 @@ class PointTracker(nn.Module):
         if blur_match is not None and not blur_match > 0:
             raise InputError(f"blur_match must be a positive variance in px^2 or None, got {blur_match}")
         self.blur_match = blur_match
+        if streak_score is not None and not streak_score < 0:
+            raise InputError(f"streak_score must be a negative score or None, got {streak_score}")
+        self.streak_score = streak_score
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
@@ -340,7 +372,12 @@ class PointTracker(nn.Module):
     def init(self, frame: Tensor, points: Tensor) -> TrackerState:
         """Train every point's filters on ``frame`` ``(H, W)``; points ``(P, 2)`` outside the image start
         lost."""
-        frame = self._frame(frame)
+        state = self._train(self._frame(frame), points)
+        streak = self._streak(state.frame)
+        return replace(state, streak=streak, template=(streak,) if streak else ())
+
+    def _train(self, frame: Tensor, points: Tensor) -> TrackerState:
+        """:meth:`init` on a ``(1, 1, H, W)`` frame, without measuring its motion blur."""
         points = torch.as_tensor(points, dtype=frame.dtype, device=frame.device)
         if points.dim() != 2 or points.shape[1] != 2:
             raise InputError(f"points must have shape (P, 2), got {tuple(points.shape)}")
@@ -506,7 +543,48 @@ class PointTracker(nn.Module):
         frame = self._frame(frame)
         if self.blur_match is None:
             return self._advance(forward, frame, state)
+        streak = self._streak(frame)
+        if streak is not None or state.template:
+            return self._streak_matched_step(forward, frame, state, streak)
         return self._blur_matched_step(forward, frame, state)
+
+    def _streak(self, frame: Tensor) -> Streak | None:
+        """The straight motion blur ``(length, angle)`` of a ``(1, 1, H, W)`` frame, None where its cepstral score
+        is above ``streak_score`` (or streak matching is off, or the frame is too small to measure)."""
+        if self.streak_score is None or self.blur_match is None or min(frame.shape[-2:]) <= 48:
+            return None
+        length, angle, score = motion_blur_streak(frame).double()[0].tolist()
+        return (length, angle) if score < self.streak_score else None
+
+    def _streak_matched_step(self, forward, frame: Tensor, state: TrackerState, streak: Streak | None) -> TrackerState:
+        """:meth:`forward` where this frame or the views the filters were last trained afresh on show a straight
+        motion blur (``streak``: this frame's).
+
+        When the two blurs differ by more than ``blur_match`` px^2 in some direction (as covariances), each view
+        gets the other's streak: the filters are retrained on the previous frame blurred by this frame's streak
+        and search this frame blurred by the previous frame's, so both carry the same two streaks and no bias
+        (a streak's sidelobes have the opposite sign of a Gaussian's, which a correlation filter reads as a
+        shift along the streak). Otherwise the plain step runs. The radial power profiles of the Gaussian
+        matching restart after such a step."""
+        (axx, axy, ayy), (bxx, bxy, byy) = _streak_covariance([streak] if streak else []), _streak_covariance(
+            state.template)
+        dxx, dxy, dyy = axx - bxx, axy - bxy, ayy - byy
+        largest = abs((dxx + dyy) / 2) + math.hypot((dxx - dyy) / 2, dxy)  # largest |eigenvalue| of the change
+        if largest <= self.blur_match:
+            return replace(self._advance(forward, frame, state), streak=streak, template=state.template)
+        retrained = self._retrained(self._streak_blurred(state.frame, streak), state)
+        new = self._advance(forward, self._streak_blurred(frame, state.streak), retrained)
+        template = tuple(s for s in (state.streak, streak) if s is not None)
+        return replace(new, frame=frame, streak=streak, template=template)
+
+    @staticmethod
+    def _streak_blurred(frame: Tensor, streak: Streak | None) -> Tensor:
+        """A ``(1, 1, H, W)`` frame convolved with a streak (:func:`core.streak.streak_kernel`, reflected borders;
+        None: the frame)."""
+        if streak is None:
+            return frame
+        kernel = torch.from_numpy(streak_kernel(*streak)).to(frame)
+        return filter2d(frame, kernel[None], border_type="reflect")
 
     @staticmethod
     def _advance(forward, frame: Tensor, state: TrackerState) -> TrackerState:
@@ -519,7 +597,7 @@ class PointTracker(nn.Module):
     def _retrained(self, frame: Tensor, state: TrackerState) -> TrackerState:
         """``state`` with every point's filters trained afresh on ``frame`` ``(1, 1, H, W)`` at its positions (lost
         points stay lost)."""
-        fresh = self.init(frame[0, 0], state.positions)
+        fresh = self._train(frame, state.positions)
         return replace(fresh, lost=fresh.lost | state.lost, psr=state.psr, psr_mean=state.psr_mean)
 
     def _blur_matched_step(self, forward, frame: Tensor, state: TrackerState) -> TrackerState:

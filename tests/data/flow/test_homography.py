@@ -7,7 +7,7 @@ import pytest
 
 from core.errors import InputError
 from data.flow import HOMOGRAPHY_CONDITIONS, degrade, homography_sequence
-from data.flow.homography import streak_kernel
+from core.streak import streak_kernel
 
 
 def _image(h: int = 120, w: int = 160) -> np.ndarray:

@@ -1,0 +1,35 @@
+"""Straight motion-blur streaks, torch-free: the kernel of a camera or object moving in a line during the
+exposure, and a frame blurred by it (used by the homography sets that make such blur, by the point tracker that
+matches it and by the deployment runtime)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from core.errors import InputError
+
+
+def streak_kernel(length: float, angle: float) -> np.ndarray:
+    """Motion-blur kernel: a straight streak of ``length`` px at ``angle`` radians (x towards y) through the
+    centre of an odd square, as the mean of 256 bilinear splats along it; float32, sums to 1."""
+    if not (np.isfinite(length) and length >= 0 and np.isfinite(angle)):
+        raise InputError(f"a streak needs a finite length >= 0 and a finite angle, got {length} px, {angle} rad")
+    half = int(np.ceil(length / 2)) + 1
+    kernel = np.zeros((2 * half + 1, 2 * half + 1), np.float64)
+    t = np.linspace(-length / 2, length / 2, 256)
+    x, y = half + t * np.cos(angle), half + t * np.sin(angle)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = x - x0, y - y0
+    for dy, dx, weight in ((0, 0, (1 - fx) * (1 - fy)), (0, 1, fx * (1 - fy)), (1, 0, (1 - fx) * fy), (1, 1, fx * fy)):
+        np.add.at(kernel, (y0 + dy, x0 + dx), weight)
+    return (kernel / kernel.sum()).astype(np.float32)
+
+
+def streak_blur(image: np.ndarray, length: float, angle: float, border: int = cv2.BORDER_REFLECT_101) -> np.ndarray:
+    """A float32 gray image ``(H, W)`` convolved with :func:`streak_kernel` (``border``: OpenCV's border mode;
+    the default reflects without repeating the edge, as ``torch`` and ``kornia`` do)."""
+    image = np.asarray(image, np.float32)
+    if image.ndim != 2:
+        raise InputError(f"streak_blur needs a (H, W) gray image, got shape {image.shape}")
+    return cv2.filter2D(image, -1, streak_kernel(length, angle), borderType=border)
