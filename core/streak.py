@@ -4,10 +4,15 @@ matches it and by the deployment runtime)."""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable
+
 import cv2
 import numpy as np
 
 from core.errors import InputError
+
+Streak = tuple[float, float]  # a straight streak: length in px, angle in rad (x towards y)
 
 
 def streak_kernel(length: float, angle: float) -> np.ndarray:
@@ -33,3 +38,21 @@ def streak_blur(image: np.ndarray, length: float, angle: float, border: int = cv
     if image.ndim != 2:
         raise InputError(f"streak_blur needs a (H, W) gray image, got shape {image.shape}")
     return cv2.filter2D(image, -1, streak_kernel(length, angle), borderType=border)
+
+
+def streak_covariance(streaks: Iterable[Streak]) -> tuple[float, float, float]:
+    """Covariance ``(xx, xy, yy)`` in px^2 of the blur of a chain of streaks: ``L^2 / 12`` (a box's variance)
+    along each streak's direction, summed (the covariances of convolved kernels add)."""
+    xx = xy = yy = 0.0
+    for length, angle in streaks:
+        variance, c, s = length * length / 12, math.cos(angle), math.sin(angle)
+        xx, xy, yy = xx + variance * c * c, xy + variance * c * s, yy + variance * s * s
+    return xx, xy, yy
+
+
+def streak_change(after: Iterable[Streak], before: Iterable[Streak]) -> float:
+    """How much two chains of streaks differ: the largest absolute eigenvalue (px^2) of the difference of their
+    covariances (:func:`streak_covariance`), i.e. the largest change of blur variance in any direction."""
+    (axx, axy, ayy), (bxx, bxy, byy) = streak_covariance(after), streak_covariance(before)
+    dxx, dxy, dyy = axx - bxx, axy - bxy, ayy - byy
+    return abs((dxx + dyy) / 2) + math.hypot((dxx - dyy) / 2, dxy)

@@ -19,6 +19,9 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   ``reference``, ``profile`` -> ``blur`` (1,) px^2 (:mod:`models.tracking.blur`): the blur matching of
   :meth:`PointTracker.step`, whose branches (retrain on a blurred previous frame, search a blurred copy) the
   runtime takes in numpy with ``cv2.GaussianBlur``; ``thresholds.blur_match_px2`` in the manifest (null: off).
+- ``streak.onnx``: ``frame`` -> ``streak`` (1, 3): length (px), angle (rad) and cepstral score of the frame's
+  straight motion blur (:mod:`models.tracking.motion_blur`); below ``thresholds.streak_score`` (null: off) the
+  runtime matches streaks as :meth:`PointTracker._streak_matched_step` does, with ``core.streak.streak_blur``.
 
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
 difference and the lost flags that differ.
@@ -35,10 +38,12 @@ from torch import Tensor, nn
 
 from core.command import CommandParser, run_command
 from core.errors import InputError
+from core.streak import streak_blur
 from export.bundle import staged_bundle
 from export.onnx import OPSET, export_onnx
 from models.tracking import PointTracker
 from models.tracking.blur import RadialPowerProfile, gaussian_blur, relative_blur
+from models.tracking.motion_blur import MotionBlurStreak
 from models.tracking.point_tracker import METHODS
 from runtime.bundle import write_manifest
 from runtime.tracking import OnnxPointTracker
@@ -114,8 +119,8 @@ def export_tracking_init(path: str | Path, tracker: PointTracker, height: int = 
 
 
 def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, width: int = 320) -> None:
-    """Export ``profile.onnx`` (dynamic H, W) and ``relative_blur.onnx`` into ``folder`` (example frames of
-    ``tracker``'s :func:`example_inputs`)."""
+    """Export ``profile.onnx``, ``streak.onnx`` (both dynamic H, W) and ``relative_blur.onnx`` into ``folder``
+    (example frames of ``tracker``'s :func:`example_inputs`)."""
     frame = example_inputs(tracker, height, width, 2)[0]
     h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
     profiler = RadialPowerProfile()
@@ -125,11 +130,14 @@ def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, w
         reference, profile = profiler(frame), profiler(gaussian_blur(frame, 2.0))
         export_onnx(RelativeBlurGraph(), (reference, profile), folder / "relative_blur.onnx", ["reference", "profile"],
                     ["blur"])
+        streaked = torch.from_numpy(streak_blur(frame[0, 0].numpy(), 9.0, 0.5))[None, None]
+        export_onnx(MotionBlurStreak(), (streaked,), folder / "streak.onnx", ["frame"], ["streak"],
+                    dynamic_shapes=({2: h, 3: w},))
 
 
 def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, width: int = 320) -> Path:
     """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``profile.onnx``,
-    ``relative_blur.onnx``, ``bundle.json``)."""
+    ``relative_blur.onnx``, ``streak.onnx``, ``bundle.json``)."""
     if method not in METHODS:
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
     if not (MIN_SIZE <= height <= MAX_SIZE and MIN_SIZE <= width <= MAX_SIZE):
@@ -147,7 +155,8 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
             thresholds={"psr_threshold": tracker.psr_threshold, "psr_relative": tracker.psr_relative,
                         "psr_rate": tracker.psr_rate,
                         "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
-                        "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match},
+                        "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match,
+                        "streak_score": tracker.streak_score},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
                       "search_sigmas": list(tracker.search_sigmas),
                       "good_features": {"quality": 0.01, "min_distance": 5}})

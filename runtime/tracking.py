@@ -8,7 +8,9 @@ bundle's ``init`` graph trains every point's filters on it, then its ``step`` gr
 next frame (pyramid, coarse-to-fine correlation, lost flags and filter updates inside the graph; the filters are
 numpy state between the calls). Blur matching as in ``PointTracker.step``: the ``profile`` and ``relative_blur``
 graphs measure how much blurrier each frame is than the one the filters were last trained afresh on, and beyond
-the bundle's ``blur_match_px2`` the sharper view is blurred (``cv2.GaussianBlur``) before the search. The tracks
+the bundle's ``blur_match_px2`` the sharper view is blurred (``cv2.GaussianBlur``) before the search; where the
+``streak`` graph finds straight motion blur (a score below the bundle's ``streak_score``), each view is blurred by
+the other's streak instead (``core.streak``). The tracks
 file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
 ``points``, ``method`` and ``frames``.
 """
@@ -27,6 +29,7 @@ from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import writable_folder, write_npz
 from core.frames import read_frames, read_points
+from core.streak import Streak, streak_blur, streak_change
 from runtime.bundle import Bundle, add_runtime_arguments
 
 
@@ -55,7 +58,10 @@ class OnnxPointTracker:
         size = self.bundle.section("input")
         self.min_size, self.max_size = int(size["min_size"]), int(size["max_size"])
         self.init_graph, self.step_graph = self.bundle.graph("init"), self.bundle.graph("step")
-        self.blur_match = self.bundle.section("thresholds").get("blur_match_px2")
+        thresholds = self.bundle.section("thresholds")
+        self.blur_match = thresholds.get("blur_match_px2")
+        self.streak_score = thresholds.get("streak_score") if self.blur_match is not None else None
+        self.streak_graph = self.bundle.graph("streak") if self.streak_score is not None else None
         self.profile_graph, self.relative_graph = self.bundle.graph("profile"), self.bundle.graph("relative_blur")
 
     def _frame(self, frame: np.ndarray, index: int) -> np.ndarray:
@@ -82,17 +88,26 @@ class OnnxPointTracker:
             if previous is None:
                 positions, flags, scores, means, *filters = self.init_graph(image, points)
                 reference = last = self.profile_graph(image) if self.blur_match is not None else None
+                streak = self._streak(image)
+                template = (streak,) if streak else ()
             else:
                 if image.shape != previous.shape:
                     raise InputError(f"frame {t} has size {image.shape[2:]}, frame 0 has {previous.shape[2:]}")
                 if self.blur_match is None:
                     positions, flags, scores, means, *filters = self.step_graph(image, previous, positions, flags,
                                                                                 means, *filters)
+                elif (new_streak := self._streak(image)) is not None or template:
+                    (positions, flags, scores, means, *filters), template = self._streak_step(
+                        image, previous, positions, flags, means, filters, streak, new_streak, template)
+                    reference = last = None  # the Gaussian matching restarts from this frame
                 else:
+                    last = self.profile_graph(previous) if last is None else last
                     profile = self.profile_graph(image)
                     (positions, flags, scores, means, *filters), reference = self._matched_step(
-                        image, previous, positions, flags, means, filters, reference, last, profile)
+                        image, previous, positions, flags, means, filters, last if reference is None else reference,
+                        last, profile)
                     last = profile
+                streak = new_streak if self.blur_match is not None else None
             previous = image
             tracks.append(positions)
             lost.append(flags)
@@ -123,6 +138,34 @@ class OnnxPointTracker:
             flags, filters = self._retrained(image, positions, flags)
             return [positions, flags, scores, means, *filters], profile
         return self.step_graph(image, previous, positions, flags, means, *filters), reference
+
+
+    def _streak(self, image: np.ndarray) -> Streak | None:
+        """The straight motion blur (length, angle) of a (1, 1, H, W) frame, None where the ``streak`` graph's score
+        is above the bundle's ``streak_score`` (or streak matching is off, or the frame is too small)
+        (``PointTracker._streak``)."""
+        if self.streak_graph is None or min(image.shape[2:]) <= 48:
+            return None
+        length, angle, score = (float(v) for v in self.streak_graph(image)[0])
+        return (length, angle) if score < self.streak_score else None
+
+    def _streak_step(self, image: np.ndarray, previous: np.ndarray, positions: np.ndarray, flags: np.ndarray,
+                     means: np.ndarray, filters: list, streak: Streak | None, new_streak: Streak | None,
+                     template: tuple[Streak, ...]):
+        """One step with streak matching (``PointTracker._streak_matched_step``): the step graph's outputs and the
+        streaks of the views the filters were last trained afresh on (``streak``: of ``previous``,
+        ``new_streak``: of ``image``, ``template``: the filters' streaks before the step)."""
+        if streak_change([new_streak] if new_streak else [], template) <= self.blur_match:
+            return self.step_graph(image, previous, positions, flags, means, *filters), template
+        matched = _streaked(previous, new_streak)
+        flags, filters = self._retrained(matched, positions, flags)
+        outputs = self.step_graph(_streaked(image, streak), matched, positions, flags, means, *filters)
+        return outputs, tuple(s for s in (streak, new_streak) if s is not None)
+
+
+def _streaked(image: np.ndarray, streak: Streak | None) -> np.ndarray:
+    """A (1, 1, H, W) frame blurred by a streak (``core.streak.streak_blur``; None: the frame)."""
+    return image if streak is None else streak_blur(image[0, 0], *streak)[None, None]
 
 
 def _blurred(image: np.ndarray, variance: float) -> np.ndarray:

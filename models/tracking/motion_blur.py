@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 from torch import Tensor, nn
 
@@ -28,11 +29,11 @@ _MAD_TO_STD = 1.482602218505602  # std of a normal distribution over its median 
 
 def _search_offsets(min_length: float, max_length: int) -> tuple[Tensor, Tensor]:
     """Integer cepstrum offsets ``(dy, dx)`` ``(K,)`` of the half plane ``dy > 0`` or ``dy = 0, dx > 0`` (the
-    cepstrum of a real image is even) with ``min_length <= |(dy, dx)| <= max_length``."""
-    dy, dx = torch.meshgrid(torch.arange(max_length + 1), torch.arange(-max_length, max_length + 1), indexing="ij")
-    radius = torch.hypot(dy.double(), dx.double())
-    keep = (radius >= min_length) & (radius <= max_length) & ((dy > 0) | (dx > 0))
-    return dy[keep], dx[keep]
+    cepstrum of a real image is even) with ``min_length <= |(dy, dx)| <= max_length`` (constants of a graph)."""
+    dy, dx = np.meshgrid(np.arange(max_length + 1), np.arange(-max_length, max_length + 1), indexing="ij")
+    radius2 = dy * dy + dx * dx
+    keep = (radius2 >= min_length**2) & (radius2 <= max_length**2) & ((dy > 0) | (dx > 0))
+    return torch.from_numpy(dy[keep]), torch.from_numpy(dx[keep])
 
 
 def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int = 24, noise_stride: int = 4,
@@ -61,14 +62,19 @@ def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int =
     h, w = image.shape[-2:]
     window = symmetric_hann(h, image)[:, None] * symmetric_hann(w, image)
     mean = (image * window).sum((-2, -1), keepdim=True) / window.sum()
-    spectrum = torch.fft.rfft2(((image - mean) * window)[:, 0])
+    spectrum = torch.fft.fft2(((image - mean) * window)[:, 0])  # full: the log power is transformed as a real image
     noise = image_noise_std(image, noise_stride).square().clamp_min(1 / 12) * window.square().sum()
     power = spectrum.real.square() + spectrum.imag.square()
-    cepstrum = torch.fft.irfft2(torch.log(power + noise[:, None, None]), s=(h, w)).flatten(1)  # (B, H W)
+    # the power cepstrum: the log power is real and even, so its inverse DFT is the real part of its forward DFT
+    # over H W, read at columns 0 .. W // 2 (the rest by the same symmetry); the scale does not change the score
+    cepstrum = torch.fft.rfft2(torch.log(power + noise[:, None, None])).real.flatten(1)  # (B, H (W // 2 + 1))
+    half = w // 2 + 1
     dy, dx = (v.to(image.device) for v in _search_offsets(min_length, max_length))
 
-    def read(rows: Tensor, columns: Tensor) -> Tensor:
-        return cepstrum.gather(1, torch.remainder(rows, h) * w + torch.remainder(columns, w))
+    def read(rows: Tensor, columns: Tensor) -> Tensor:  # offsets within one period; C(-y, -x) = C(y, x)
+        flip = columns < 0
+        rows, columns = torch.where(flip, -rows, rows), torch.where(flip, -columns, columns)
+        return cepstrum.gather(1, torch.where(rows < 0, rows + h, rows) * half + columns)
 
     values = read(*(v.expand(image.shape[0], -1) for v in (dy[None], dx[None])))  # (B, K)
     k = values.shape[1]
@@ -85,7 +91,7 @@ def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int =
 
     fy = y[:, 0].to(image.dtype) + vertex(read(y - 1, x), read(y + 1, x))
     fx = x[:, 0].to(image.dtype) + vertex(read(y, x - 1), read(y, x + 1))
-    length = torch.hypot(fy, fx)
+    length = (fy.square() + fx.square()).sqrt()
     angle = torch.remainder(torch.atan2(fy, fx), math.pi)
     score = (low - median[:, 0]) / spread.clamp_min(1e-12)
     return torch.stack([length, angle, score], -1)

@@ -53,14 +53,14 @@ from torch import Tensor, nn
 from tqdm import tqdm
 
 from core.errors import InputError
+from core.streak import Streak, streak_change, streak_kernel
 from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label, image_noise_std
 from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
-from core.streak import streak_kernel
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
-from models.tracking.motion_blur import motion_blur_streak
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
+from models.tracking.motion_blur import motion_blur_streak
 
 METHODS = ("ccot", "ccot_ff", "mosse")
 DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
@@ -150,19 +150,6 @@ def _per_level(value, levels: int, name: str, kind: type = int) -> tuple:
     if len(values) != levels:
         raise InputError(f"{name} needs one value per pyramid level ({levels}), got {values}")
     return values
-
-
-Streak = tuple[float, float]  # straight motion blur: length in px, angle in rad (x towards y)
-
-
-def _streak_covariance(streaks: Iterable[Streak]) -> tuple[float, float, float]:
-    """Covariance ``(xx, xy, yy)`` in px^2 of the blur of a sequence of streaks (each ``L^2 / 12`` along its
-    direction; the covariances of convolved kernels add)."""
-    xx = xy = yy = 0.0
-    for length, angle in streaks:
-        variance, c, s = length * length / 12, math.cos(angle), math.sin(angle)
-        xx, xy, yy = xx + variance * c * c, xy + variance * c * s, yy + variance * s * s
-    return xx, xy, yy
 
 
 @dataclass
@@ -550,8 +537,9 @@ class PointTracker(nn.Module):
 
     def _streak(self, frame: Tensor) -> Streak | None:
         """The straight motion blur ``(length, angle)`` of a ``(1, 1, H, W)`` frame, None where its cepstral score
-        is above ``streak_score`` (or streak matching is off, or the frame is too small to measure)."""
-        if self.streak_score is None or self.blur_match is None or min(frame.shape[-2:]) <= 48:
+        is above ``streak_score`` (or streak matching is off, or the frame is too small to measure, or the graph of
+        :meth:`init` is being exported: the runtime measures streaks with a graph of their own)."""
+        if self.streak_score is None or self.blur_match is None or min(frame.shape[-2:]) <= 48 or _exporting():
             return None
         length, angle, score = motion_blur_streak(frame).double()[0].tolist()
         return (length, angle) if score < self.streak_score else None
@@ -560,17 +548,13 @@ class PointTracker(nn.Module):
         """:meth:`forward` where this frame or the views the filters were last trained afresh on show a straight
         motion blur (``streak``: this frame's).
 
-        When the two blurs differ by more than ``blur_match`` px^2 in some direction (as covariances), each view
-        gets the other's streak: the filters are retrained on the previous frame blurred by this frame's streak
-        and search this frame blurred by the previous frame's, so both carry the same two streaks and no bias
-        (a streak's sidelobes have the opposite sign of a Gaussian's, which a correlation filter reads as a
-        shift along the streak). Otherwise the plain step runs. The radial power profiles of the Gaussian
-        matching restart after such a step."""
-        (axx, axy, ayy), (bxx, bxy, byy) = _streak_covariance([streak] if streak else []), _streak_covariance(
-            state.template)
-        dxx, dxy, dyy = axx - bxx, axy - bxy, ayy - byy
-        largest = abs((dxx + dyy) / 2) + math.hypot((dxx - dyy) / 2, dxy)  # largest |eigenvalue| of the change
-        if largest <= self.blur_match:
+        When the two blurs differ by more than ``blur_match`` px^2 in some direction
+        (:func:`core.streak.streak_change`), each view gets the other's streak: the filters are retrained on the
+        previous frame blurred by this frame's streak and search this frame blurred by the previous frame's, so
+        both carry the same two streaks and no bias (a streak's sidelobes have the opposite sign of a
+        Gaussian's, which a correlation filter reads as a shift along the streak). Otherwise the plain step
+        runs. The radial power profiles of the Gaussian matching restart after such a step."""
+        if streak_change([streak] if streak else [], state.template) <= self.blur_match:
             return replace(self._advance(forward, frame, state), streak=streak, template=state.template)
         retrained = self._retrained(self._streak_blurred(state.frame, streak), state)
         new = self._advance(forward, self._streak_blurred(frame, state.streak), retrained)

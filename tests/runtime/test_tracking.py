@@ -1,6 +1,6 @@
 """The runtime's point tracker: its command, run without torch, against the PyTorch tracker on the same frames
-and start points (tracks within 0.01 px, the same lost flags), through blur changes too, OpenCV's start points, a
-lone point, frames that do not fit the bundle."""
+and start points (tracks within 0.01 px, the same lost flags), through blur and motion-blur changes too, OpenCV's
+start points, a lone point, frames that do not fit the bundle."""
 
 import cv2
 import numpy as np
@@ -9,9 +9,11 @@ import torch
 
 from core.errors import InputError
 from core.frames import read_frames
+from core.streak import streak_blur
 from data.flow import synthetic_sequence
 from models.tracking import PointTracker
 from models.tracking.blur import radial_power_profile, relative_blur
+from models.tracking.motion_blur import motion_blur_streak
 from runtime.tracking import OnnxPointTracker, good_features
 
 pytestmark = pytest.mark.slow  # uses an exported bundle
@@ -86,6 +88,27 @@ def test_blur_matching_branches_match_pytorch(tracking_bundle) -> None:
     assert blurrier > 2 and sharper < -2
     start = np.random.default_rng(1).uniform([10, 10], [118, 86], (40, 2))
     tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
+    ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
+                                                         torch.from_numpy(start).float())
+    np.testing.assert_array_equal(lost, ref_lost.numpy())
+    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+
+
+def test_streak_matching_branches_match_pytorch(tracking_bundle) -> None:
+    """A motion blur that sets in, grows, turns and stops: the runtime finds the same streaks (its ``streak`` graph
+    against PyTorch's), takes the same cross-blurred steps and gives the same tracks."""
+    seq = synthetic_sequence(frames=5, size=(96, 128), max_motion=3.0, blur=0.0, seed=5)
+    streaks = (None, (7.0, 0.4), (11.0, 0.5), (9.0, 2.0), None)
+    images = [f if s is None else streak_blur(f, *s) for f, s in zip(seq.frames.astype(np.float32), streaks,
+                                                                      strict=True)]
+    tracker = OnnxPointTracker(tracking_bundle, threads=1)
+    found = [tracker._streak(f[None, None]) for f in images]
+    assert [s is None for s in found] == [s is None for s in streaks]
+    reference = torch.stack([torch.from_numpy(f) for f in images])[:, None]
+    np.testing.assert_allclose(np.stack([tracker.streak_graph(f[None, None])[0] for f in images]),
+                               motion_blur_streak(reference).numpy(), rtol=1e-3, atol=1e-3)
+    start = np.random.default_rng(2).uniform([10, 10], [118, 86], (40, 2))
+    tracks, lost, _ = tracker.track(images, start)
     ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
                                                          torch.from_numpy(start).float())
     np.testing.assert_array_equal(lost, ref_lost.numpy())

@@ -7,7 +7,6 @@ import pytest
 
 from core.errors import InputError
 from data.flow import HOMOGRAPHY_CONDITIONS, degrade, homography_sequence
-from core.streak import streak_kernel
 
 
 def _image(h: int = 120, w: int = 160) -> np.ndarray:
@@ -74,15 +73,6 @@ def test_bad_input():
         homography_sequence(_image(), "blur", frames=1)
     with pytest.raises(InputError, match=r"\(P, 2\)"):
         homography_sequence(_image(), "none", frames=2).track(np.zeros((3, 3)))
-
-
-def test_streak_kernel_is_a_line_of_the_given_length_and_direction():
-    kernel = streak_kernel(9.0, np.pi / 2)  # along y
-    assert kernel.sum() == pytest.approx(1.0, abs=1e-6)
-    ys, xs = np.nonzero(kernel > 1e-6)
-    assert set(xs) == {kernel.shape[1] // 2} and ys.max() - ys.min() == 10  # 9 px between half-pixel ends
-    rows = np.arange(kernel.shape[0]) - kernel.shape[0] // 2
-    assert (kernel.sum(1) * rows**2).sum() == pytest.approx(81 / 12, rel=0.05)  # a box's variance, L^2 / 12
 
 
 def test_motion_blur_smears_one_direction_only():

@@ -2,15 +2,18 @@
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 import torch
 from kornia.geometry.transform import pyrdown
 
 from core.errors import InputError
+from core.streak import streak_blur
 from models.dcf import cosine_window, cubic_spline_fourier
 from models.dcf.dft import band_index
 from models.tracking import PointTracker, extract_patches, good_features_to_track
+from models.tracking.motion_blur import motion_blur_streak
 from models.tracking.point_tracker import image_pyramid
 
 
@@ -384,6 +387,46 @@ def test_blur_matching_leaves_a_steady_blur_alone():
     matched = PointTracker("ccot").double().track(frames, points)
     for a, b in zip(plain, matched, strict=True):
         torch.testing.assert_close(a, b)
+
+
+def _streak_sequence(lengths: tuple[float, ...], angle: float, seed: int):
+    """Crops of a broadband random texture (detail at several scales, sharp-edged rectangles) moving by (3, -2) px
+    per frame, blurred by straight streaks of ``lengths`` px at ``angle`` (a panning camera), with sensor noise
+    of std 1, rounded: frames, start points on a grid, their true last positions."""
+    rng = np.random.default_rng(seed)
+    big = sum(cv2.GaussianBlur(rng.normal(0, 1, (260, 260)), (0, 0), s) * s for s in (0.7, 1.5, 4.0))
+    big = 128 + 30 * big / big.std()
+    for _ in range(60):
+        x, y = rng.integers(0, 240, 2)
+        big[y : y + rng.integers(5, 20), x : x + rng.integers(5, 20)] += rng.uniform(-60, 60)
+    frames = []
+    for t, length in enumerate(lengths):  # content moves right and up: the crop window moves left and down
+        crop = np.ascontiguousarray(big[30 + 2 * t : 222 + 2 * t, 30 - 3 * t : 222 - 3 * t], np.float32)
+        noisy = streak_blur(crop, length, angle) + rng.normal(0, 1, crop.shape)
+        frames.append(torch.from_numpy(noisy.clip(0, 255).round()))
+    grid = torch.arange(40.0, 153.0, 8.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    return frames, points, points + torch.tensor([3.0, -2.0], dtype=torch.float64) * (len(lengths) - 1)
+
+
+def test_streak_matching_removes_the_scatter_of_a_growing_motion_blur():
+    """A motion blur growing from 2 to 14 px: the streaks are found (cepstral scores below the default -10 from 5
+    px on) and matched exactly, several times more precise than the Gaussian stand-in of the plain blur
+    matching (0.29 against 0.98 px when written)."""
+    frames, points, truth = _streak_sequence((2.0, 5.0, 8.0, 11.0, 14.0), 0.6, seed=11)
+    scores = motion_blur_streak(torch.stack(frames)[:, None].float())[:, 2]
+    assert (scores[1:] < -10).all(), scores
+    errors = {}
+    for streak_score in (None, -10.0):
+        tracks, lost, _ = PointTracker("ccot", streak_score=streak_score).double().track(frames, points)
+        errors[streak_score] = (tracks[-1] - truth).norm(dim=-1).median().item()
+    assert not lost[-1].any()  # the streak-matched tracker's
+    assert errors[-10.0] < 0.5 * errors[None], errors
+
+
+def test_streak_score_is_checked():
+    with pytest.raises(InputError, match="streak_score"):
+        PointTracker("ccot", streak_score=3.0)
 
 
 def test_search_prior_does_not_bias_a_clear_peak():

@@ -1,0 +1,63 @@
+"""Straight streaks: the kernel's length, direction and variance, the blur of an impulse, the covariance of a
+chain of streaks against the kernels' own second moments, the change between two chains against NumPy's
+eigenvalues, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+
+from core.errors import InputError
+from core.streak import streak_blur, streak_change, streak_covariance, streak_kernel
+
+
+def test_streak_kernel_is_a_line_of_the_given_length_and_direction():
+    kernel = streak_kernel(9.0, np.pi / 2)  # along y
+    assert kernel.sum() == pytest.approx(1.0, abs=1e-6)
+    ys, xs = np.nonzero(kernel > 1e-6)
+    assert set(xs) == {kernel.shape[1] // 2} and ys.max() - ys.min() == 10  # 9 px between half-pixel ends
+    rows = np.arange(kernel.shape[0]) - kernel.shape[0] // 2
+    assert (kernel.sum(1) * rows**2).sum() == pytest.approx(81 / 12, rel=0.05)  # a box's variance, L^2 / 12
+
+
+def _moments(kernel: np.ndarray) -> np.ndarray:
+    """Second moments (xx, xy, yy) of a centred kernel."""
+    y, x = np.mgrid[: kernel.shape[0], : kernel.shape[1]] - kernel.shape[0] // 2
+    return np.array([(kernel * x * x).sum(), (kernel * x * y).sum(), (kernel * y * y).sum()])
+
+
+@pytest.mark.parametrize(("length", "angle"), [(8.0, 0.0), (11.0, 0.7), (6.0, 2.4)])
+def test_covariance_is_the_kernels_second_moment(length, angle):
+    """Within the bilinear splats' own spread (up to a quarter px^2 per axis: a splat at fraction ``f`` adds
+    ``f (1 - f)``)."""
+    np.testing.assert_allclose(streak_covariance([(length, angle)]), _moments(streak_kernel(length, angle)), atol=0.25)
+
+
+def test_a_chain_adds_covariances_and_the_change_is_the_largest_eigenvalue():
+    chain = [(8.0, 0.3), (5.0, 1.9)]
+    impulse = np.zeros((41, 41), np.float32)
+    impulse[20, 20] = 1
+    both = streak_blur(streak_blur(impulse, *chain[0]), *chain[1])  # the kernel of the chain
+    np.testing.assert_allclose(streak_covariance(chain), _moments(both), atol=0.5)  # two kernels' splats
+    other = [(12.0, 1.0)]
+    (axx, axy, ayy), (bxx, bxy, byy) = streak_covariance(chain), streak_covariance(other)
+    expected = np.abs(np.linalg.eigvalsh([[axx - bxx, axy - bxy], [axy - bxy, ayy - byy]])).max()
+    assert streak_change(chain, other) == pytest.approx(expected, rel=1e-12)
+    assert streak_change([], []) == 0.0 and streak_change([(6.0, 0.5)], []) == pytest.approx(3.0)
+
+
+def test_blurring_an_impulse_gives_the_kernel():
+    impulse = np.zeros((31, 31), np.float32)
+    impulse[15, 15] = 1
+    kernel = streak_kernel(7.5, 0.4)
+    r = kernel.shape[0] // 2
+    np.testing.assert_allclose(streak_blur(impulse, 7.5, 0.4)[15 - r : 16 + r, 15 - r : 16 + r], kernel, atol=1e-7)
+
+
+def test_bad_input():
+    with pytest.raises(InputError, match="streak"):
+        streak_kernel(-1.0, 0.0)
+    with pytest.raises(InputError, match="streak"):
+        streak_kernel(5.0, math.nan)
+    with pytest.raises(InputError, match=r"\(H, W\)"):
+        streak_blur(np.zeros((4, 4, 3)), 5.0, 0.0)
