@@ -56,3 +56,10 @@ def streak_change(after: Iterable[Streak], before: Iterable[Streak]) -> float:
     (axx, axy, ayy), (bxx, bxy, byy) = streak_covariance(after), streak_covariance(before)
     dxx, dxy, dyy = axx - bxx, axy - bxy, ayy - byy
     return abs((dxx + dyy) / 2) + math.hypot((dxx - dyy) / 2, dxy)
+
+
+def streak_found(score: float, rival: float, threshold: float) -> bool:
+    """Whether a frame's cepstral ``score`` and ``rival`` (``models.tracking.motion_blur.motion_blur_streak``) show a
+    straight streak: the score below ``threshold`` (negative) and nothing below half of it in other directions
+    (a compression block grid's minima lie in several)."""
+    return score < threshold and rival > threshold / 2

@@ -19,8 +19,8 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   ``reference``, ``profile`` -> ``blur`` (1,) px^2 (:mod:`models.tracking.blur`): the blur matching of
   :meth:`PointTracker.step`, whose branches (retrain on a blurred previous frame, search a blurred copy) the
   runtime takes in numpy with ``cv2.GaussianBlur``; ``thresholds.blur_match_px2`` in the manifest (null: off).
-- ``streak.onnx``: ``frame`` -> ``streak`` (1, 3): length (px), angle (rad) and cepstral score of the frame's
-  straight motion blur (:mod:`models.tracking.motion_blur`); below ``thresholds.streak_score`` (null: off) the
+- ``streak.onnx``: ``frame`` -> ``streak`` (1, 4): length (px), angle (rad), cepstral score and rival of the
+  frame's straight motion blur (:mod:`models.tracking.motion_blur`); with ``thresholds.streak_score`` (null: off) the
   runtime matches streaks as :meth:`PointTracker._streak_matched_step` does, with ``core.streak.streak_blur``.
 
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position

@@ -29,7 +29,7 @@ from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import writable_folder, write_npz
 from core.frames import read_frames, read_points
-from core.streak import Streak, streak_blur, streak_change
+from core.streak import Streak, streak_blur, streak_change, streak_found
 from runtime.bundle import Bundle, add_runtime_arguments
 
 
@@ -141,13 +141,13 @@ class OnnxPointTracker:
 
 
     def _streak(self, image: np.ndarray) -> Streak | None:
-        """The straight motion blur (length, angle) of a (1, 1, H, W) frame, None where the ``streak`` graph's score
-        is above the bundle's ``streak_score`` (or streak matching is off, or the frame is too small)
-        (``PointTracker._streak``)."""
+        """The straight motion blur (length, angle) of a (1, 1, H, W) frame (``PointTracker._streak``); None where
+        the ``streak`` graph's scores show none (``core.streak.streak_found`` with the bundle's ``streak_score``),
+        where streak matching is off and where the frame is too small."""
         if self.streak_graph is None or min(image.shape[2:]) <= 48:
             return None
-        length, angle, score = (float(v) for v in self.streak_graph(image)[0])
-        return (length, angle) if score < self.streak_score else None
+        length, angle, score, rival = (float(v) for v in self.streak_graph(image)[0])
+        return (length, angle) if streak_found(score, rival, self.streak_score) else None
 
     def _streak_step(self, image: np.ndarray, previous: np.ndarray, positions: np.ndarray, flags: np.ndarray,
                      means: np.ndarray, filters: list, streak: Streak | None, new_streak: Streak | None,

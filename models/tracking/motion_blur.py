@@ -4,7 +4,9 @@ A streak of length ``L`` px in direction ``u`` multiplies the spectrum by ``sinc
 repeat every ``2 pi / L`` rad/px along ``u``. The log power spectrum then carries a ripple of that period, and
 its inverse DFT (the power cepstrum) a strong negative peak at ``L u`` (Cannon 1976; Gennery 1973), far below
 the values around it, while a sharp frame, a Gaussian (defocus) blur or compression noise leave that part of the
-cepstrum without an outstanding minimum. The peak gives the streak's length and direction directly.
+cepstrum without an outstanding minimum. The peak gives the streak's length and direction directly. The block
+grid of a heavily compressed frame also leaves deep minima, at the grid's lattice points: in several directions,
+where a streak leaves one.
 
 The point tracker needs this because a Gaussian stand-in for a streak matches its spectrum only below the first
 zero: beyond it the streak's sidelobes have the opposite sign, and a correlation filter, which whitens the
@@ -25,6 +27,7 @@ from models.dcf.noise import image_noise_std
 from models.tracking.blur import symmetric_hann
 
 _MAD_TO_STD = 1.482602218505602  # std of a normal distribution over its median absolute deviation
+_RIVAL_ANGLE = math.radians(20)  # rad: directions this far from the streak's hold its rival
 
 
 def _search_offsets(min_length: float, max_length: int) -> tuple[Tensor, Tensor]:
@@ -46,9 +49,12 @@ def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int =
         noise_stride: pixel stride of the noise estimate (:func:`~models.dcf.image_noise_std`), whose power
         is added to the spectrum before the logarithm so that frequencies holding only noise stay flat.
     Returns:
-        ``(B, 3)``: length (px), angle (rad in ``[0, pi)``, x towards y) and score: the cepstral minimum's
+        ``(B, 4)``: length (px), angle (rad in ``[0, pi)``, x towards y), score: the cepstral minimum's
         distance below the median of the searched offsets, in robust standard deviations (median absolute
-        deviation; strongly negative, e.g. below -10, for a streak, about -3 to -8 for frames without one).
+        deviation; strongly negative, e.g. below -10, for a streak, about -3 to -8 for frames without one) and
+        rival: the same for the lowest offset in a direction more than 20 degrees away (about -2 to -4 for a
+        streak; as low as the score for the block grid of a heavily compressed frame, whose minima lie in
+        several directions; :func:`core.streak.streak_found` decides with both).
         crop: the cepstrum is taken of the central ``crop x crop`` px at most (a camera's streak is the same
         everywhere; 4x cheaper on a 1024 x 436 frame).
     """
@@ -94,11 +100,15 @@ def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int =
     length = (fy.square() + fx.square()).sqrt()
     angle = torch.remainder(torch.atan2(fy, fx), math.pi)
     score = (low - median[:, 0]) / spread.clamp_min(1e-12)
-    return torch.stack([length, angle, score], -1)
+    off_angle = torch.atan2(dy.to(image.dtype), dx.to(image.dtype))[None] - torch.atan2(fy, fx)[:, None]
+    apart = torch.remainder(off_angle + math.pi / 2, math.pi) - math.pi / 2
+    rival_low = torch.where(apart.abs() > _RIVAL_ANGLE, values, torch.full_like(values, float("inf"))).min(1).values
+    rival = (rival_low - median[:, 0]) / spread.clamp_min(1e-12)
+    return torch.stack([length, angle, score, rival], -1)
 
 
 class MotionBlurStreak(nn.Module):
-    """Module form of :func:`motion_blur_streak`: ``(B, 1, H, W)`` -> ``(B, 3)``."""
+    """Module form of :func:`motion_blur_streak`: ``(B, 1, H, W)`` -> ``(B, 4)``."""
 
     def __init__(self, min_length: float = 4.4, max_length: int = 24, noise_stride: int = 4, crop: int = 320) -> None:
         super().__init__()

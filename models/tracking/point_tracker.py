@@ -53,7 +53,7 @@ from torch import Tensor, nn
 from tqdm import tqdm
 
 from core.errors import InputError
-from core.streak import Streak, streak_change, streak_kernel
+from core.streak import Streak, streak_change, streak_found, streak_kernel
 from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label, image_noise_std
 from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
@@ -213,9 +213,10 @@ class PointTracker(nn.Module):
         blur_match: blur variance (px^2) between a frame and the frame the filters were trained on above which
         the two are matched before the search (:meth:`step`); None: never.
         streak_score: cepstral score (:func:`~models.tracking.motion_blur.motion_blur_streak`) below which a frame
-        counts as blurred by a straight streak, which is then matched exactly (:meth:`_streak_matched_step`);
-        None: streaks are treated as any other blur. The default, -10, lies between the scores of the
-        frames of the shared real videos (-3 to -8) and those of streaks of 5 px and longer (-11 to -25).
+        counts as blurred by a straight streak (if no other direction scores below half of it,
+        :func:`core.streak.streak_found`), which is then matched exactly (:meth:`_streak_matched_step`); None:
+        streaks are treated as any other blur. The default, -10, lies between the scores of the frames of the
+        shared real videos (-3 to -8) and those of streaks of 5 px and longer (-11 to -25).
     """
 
     def __init__(
@@ -536,13 +537,14 @@ class PointTracker(nn.Module):
         return self._blur_matched_step(forward, frame, state)
 
     def _streak(self, frame: Tensor) -> Streak | None:
-        """The straight motion blur ``(length, angle)`` of a ``(1, 1, H, W)`` frame, None where its cepstral score
-        is above ``streak_score`` (or streak matching is off, or the frame is too small to measure, or the graph of
-        :meth:`init` is being exported: the runtime measures streaks with a graph of their own)."""
+        """The straight motion blur ``(length, angle)`` of a ``(1, 1, H, W)`` frame; None where its cepstral scores
+        show none (:func:`core.streak.streak_found` with ``streak_score``), where streak matching is off, where
+        the frame is too small to measure and while the graph of :meth:`init` is being exported (the runtime
+        measures streaks with a graph of their own)."""
         if self.streak_score is None or self.blur_match is None or min(frame.shape[-2:]) <= 48 or _exporting():
             return None
-        length, angle, score = motion_blur_streak(frame).double()[0].tolist()
-        return (length, angle) if score < self.streak_score else None
+        length, angle, score, rival = motion_blur_streak(frame).double()[0].tolist()
+        return (length, angle) if streak_found(score, rival, self.streak_score) else None
 
     def _streak_matched_step(self, forward, frame: Tensor, state: TrackerState, streak: Streak | None) -> TrackerState:
         """:meth:`forward` where this frame or the views the filters were last trained afresh on show a straight

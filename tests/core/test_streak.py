@@ -1,6 +1,6 @@
 """Straight streaks: the kernel's length, direction and variance, the blur of an impulse, the covariance of a
 chain of streaks against the kernels' own second moments, the change between two chains against NumPy's
-eigenvalues, bad input."""
+eigenvalues, the decision from the cepstral scores, bad input."""
 
 import math
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.streak import streak_blur, streak_change, streak_covariance, streak_kernel
+from core.streak import streak_blur, streak_change, streak_covariance, streak_found, streak_kernel
 
 
 def test_streak_kernel_is_a_line_of_the_given_length_and_direction():
@@ -52,6 +52,12 @@ def test_blurring_an_impulse_gives_the_kernel():
     kernel = streak_kernel(7.5, 0.4)
     r = kernel.shape[0] // 2
     np.testing.assert_allclose(streak_blur(impulse, 7.5, 0.4)[15 - r : 16 + r, 15 - r : 16 + r], kernel, atol=1e-7)
+
+
+def test_a_streak_stands_out_in_one_direction_only():
+    assert streak_found(-14.0, -3.0, -10.0)
+    assert not streak_found(-8.0, -3.0, -10.0)  # not low enough
+    assert not streak_found(-22.0, -10.6, -10.0)  # a rival direction as deep: a compression block grid
 
 
 def test_bad_input():
