@@ -13,6 +13,7 @@ import numpy as np
 from core.errors import InputError
 
 Streak = tuple[float, float]  # a straight streak: length in px, angle in rad (x towards y)
+_BLOCK = 8  # px: the block size of JPEG and MPEG compression
 
 
 def streak_kernel(length: float, angle: float) -> np.ndarray:
@@ -58,8 +59,13 @@ def streak_change(after: Iterable[Streak], before: Iterable[Streak]) -> float:
     return abs((dxx + dyy) / 2) + math.hypot((dxx - dyy) / 2, dxy)
 
 
-def streak_found(score: float, rival: float, threshold: float) -> bool:
-    """Whether a frame's cepstral ``score`` and ``rival`` (``models.tracking.motion_blur.motion_blur_streak``) show a
-    straight streak: the score below ``threshold`` (negative) and nothing below half of it in other directions
-    (a compression block grid's minima lie in several)."""
-    return score < threshold and rival > threshold / 2
+def streak_found(length: float, angle: float, score: float, rival: float, threshold: float) -> bool:
+    """Whether the cepstral reading of a frame (``models.tracking.motion_blur.motion_blur_streak``: a streak of
+    ``length`` px at ``angle`` rad, its ``score`` and ``rival``) shows a straight streak: the score below
+    ``threshold`` (negative), nothing below half of it in other directions, and the streak's end not on the 8 px
+    lattice of block-transform compression (JPEG, MPEG: 8 x 8 blocks aligned with the pixel grid leave their
+    deepest cepstral minima at multiples of 8 px along x and y; a real streak within half a pixel of such a point,
+    e.g. a horizontal pan of 8 or 16 px, is missed, and its blur is matched as a Gaussian's)."""
+    x, y = length * math.cos(angle), length * math.sin(angle)
+    on_lattice = abs(x - _BLOCK * round(x / _BLOCK)) < 0.5 and abs(y - _BLOCK * round(y / _BLOCK)) < 0.5
+    return score < threshold and rival > threshold / 2 and not on_lattice

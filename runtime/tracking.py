@@ -147,7 +147,7 @@ class OnnxPointTracker:
         if self.streak_graph is None or min(image.shape[2:]) <= 48:
             return None
         length, angle, score, rival = (float(v) for v in self.streak_graph(image)[0])
-        return (length, angle) if streak_found(score, rival, self.streak_score) else None
+        return (length, angle) if streak_found(length, angle, score, rival, self.streak_score) else None
 
     def _streak_step(self, image: np.ndarray, previous: np.ndarray, positions: np.ndarray, flags: np.ndarray,
                      means: np.ndarray, filters: list, streak: Streak | None, new_streak: Streak | None,

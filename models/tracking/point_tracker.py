@@ -544,7 +544,7 @@ class PointTracker(nn.Module):
         if self.streak_score is None or self.blur_match is None or min(frame.shape[-2:]) <= 48 or _exporting():
             return None
         length, angle, score, rival = motion_blur_streak(frame).double()[0].tolist()
-        return (length, angle) if streak_found(score, rival, self.streak_score) else None
+        return (length, angle) if streak_found(length, angle, score, rival, self.streak_score) else None
 
     def _streak_matched_step(self, forward, frame: Tensor, state: TrackerState, streak: Streak | None) -> TrackerState:
         """:meth:`forward` where this frame or the views the filters were last trained afresh on show a straight

@@ -54,10 +54,13 @@ def test_blurring_an_impulse_gives_the_kernel():
     np.testing.assert_allclose(streak_blur(impulse, 7.5, 0.4)[15 - r : 16 + r, 15 - r : 16 + r], kernel, atol=1e-7)
 
 
-def test_a_streak_stands_out_in_one_direction_only():
-    assert streak_found(-14.0, -3.0, -10.0)
-    assert not streak_found(-8.0, -3.0, -10.0)  # not low enough
-    assert not streak_found(-22.0, -10.6, -10.0)  # a rival direction as deep: a compression block grid
+def test_a_streak_stands_out_in_one_direction_only_and_off_the_block_lattice():
+    assert streak_found(9.0, 0.6, -14.0, -3.0, -10.0)
+    assert streak_found(7.0, 0.0, -14.0, -3.0, -10.0)  # horizontal, off the lattice
+    assert not streak_found(9.0, 0.6, -8.0, -3.0, -10.0)  # not low enough
+    assert not streak_found(9.0, 0.6, -22.0, -10.6, -10.0)  # a rival direction as deep: a compression block grid
+    for length, angle in ((16.1, 0.0), (8.02, math.pi / 2), (16.0, math.pi), (8 * math.sqrt(2), math.pi / 4)):
+        assert not streak_found(length, angle, -14.0, -4.7, -10.0)  # on the 8 px lattice
 
 
 def test_bad_input():

@@ -35,7 +35,7 @@ def test_recovers_a_known_streak(length, angle):
     got_length, got_angle, score, rival = motion_blur_streak(_camera(streak_blur(image, length, angle), 2))[0].tolist()
     assert got_length == pytest.approx(length, abs=0.6)
     assert abs((got_angle - angle + np.pi / 2) % np.pi - np.pi / 2) < 0.08
-    assert score < -10 and rival > -5 and streak_found(score, rival, -10)
+    assert score < -10 and rival > -5 and streak_found(got_length, got_angle, score, rival, -10)
 
 
 def _jpeg(image: np.ndarray, quality: int) -> np.ndarray:
@@ -49,8 +49,8 @@ def test_no_streak_in_sharp_defocused_or_compressed_frames():
     for frame in (image, cv2.GaussianBlur(image, (0, 0), 2.0), _jpeg(image, 20)):
         assert motion_blur_streak(_camera(frame, 4))[0, 2] > -10
     for seed in range(3):
-        _, _, score, rival = motion_blur_streak(torch.from_numpy(_jpeg(_textured(240, 320, seed), 3))[None, None])[0]
-        assert not streak_found(float(score), float(rival), -10)
+        reading = motion_blur_streak(torch.from_numpy(_jpeg(_textured(240, 320, seed), 3))[None, None])[0]
+        assert not streak_found(*reading.tolist(), -10)
 
 
 def test_batches_and_module():
