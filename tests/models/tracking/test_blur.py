@@ -11,12 +11,13 @@ from models.dcf import image_noise_std
 from models.tracking.blur import RadialPowerProfile, gaussian_blur, radial_power_profile, relative_blur
 
 
-def _textured(h: int, w: int, seed: int) -> np.ndarray:
-    """Random texture with detail at several scales and sharp-edged rectangles, float64 around 128."""
+def textured(h: int, w: int, seed: int, rectangles: int = 20) -> np.ndarray:
+    """Random texture with detail at several scales and ``rectangles`` sharp-edged rectangles, float64 around
+    128."""
     rng = np.random.default_rng(seed)
     image = sum(cv2.GaussianBlur(rng.normal(0, 1, (h, w)), (0, 0), s) * s for s in (0.7, 1.5, 4.0))
     image = 128 + 30 * image / image.std()
-    for _ in range(20):
+    for _ in range(rectangles):
         x, y = rng.integers(0, w - 20), rng.integers(0, h - 20)
         image[y : y + rng.integers(5, 20), x : x + rng.integers(5, 20)] += rng.uniform(-60, 60)
     return image
@@ -48,7 +49,7 @@ def _numpy_profile(image: np.ndarray, bins: int, reduce: int) -> np.ndarray:
 
 @pytest.mark.parametrize(("reduce", "size"), [(1, (97, 131)), (2, (96, 128)), (3, (111, 129))])
 def test_profile_equals_numpy_reference(reduce, size):
-    images = [_textured(*size, 0), _textured(*size, 1) * 0.5]
+    images = [textured(*size, 0), textured(*size, 1) * 0.5]
     got = radial_power_profile(torch.from_numpy(np.stack(images))[:, None], bins=16, reduce=reduce)
     assert got.shape == (2, 3, 16)
     for image, profile in zip(images, got.numpy(), strict=True):
@@ -63,7 +64,7 @@ def test_recovers_a_known_blur_despite_translation_contrast_and_noise(variance, 
     """Within a few per cent on the full-resolution spectrum; the 2 x 2 block means (the default) read about
     0.1-0.2 px^2 low."""
     rng = np.random.default_rng(2)
-    sharp = _textured(200, 260, 3)
+    sharp = textured(200, 260, 3)
     blurred = cv2.GaussianBlur(np.roll(sharp, (7, -12), (0, 1)), (0, 0), np.sqrt(variance)) * 0.6 + 30
     sharp, blurred = (torch.from_numpy(f + rng.normal(0, 1.0, f.shape))[None, None] for f in (sharp, blurred))
     profiles = [radial_power_profile(f, reduce=reduce) for f in (sharp, blurred)]
@@ -73,7 +74,7 @@ def test_recovers_a_known_blur_despite_translation_contrast_and_noise(variance, 
 
 
 def test_no_blur_between_two_views_of_one_scene_and_none_from_flat_frames():
-    sharp = _textured(200, 260, 4)
+    sharp = textured(200, 260, 4)
     moved = np.roll(sharp, (3, 5), (0, 1)) * 1.3 - 10
     assert abs(float(relative_blur(_profile(sharp), _profile(moved)))) < 0.1
     flat = np.full((64, 64), 100.0)
@@ -81,7 +82,7 @@ def test_no_blur_between_two_views_of_one_scene_and_none_from_flat_frames():
 
 
 def test_batched_comparison_equals_one_by_one():
-    frames = [_textured(80, 100, s) for s in (5, 6)]
+    frames = [textured(80, 100, s) for s in (5, 6)]
     blurred = [cv2.GaussianBlur(f, (0, 0), s) for f, s in zip(frames, (1.0, 2.0), strict=True)]
     batch = relative_blur(radial_power_profile(torch.from_numpy(np.stack(frames))[:, None]),
                           radial_power_profile(torch.from_numpy(np.stack(blurred))[:, None]))
@@ -91,7 +92,7 @@ def test_batched_comparison_equals_one_by_one():
 
 @pytest.mark.parametrize("variance", [0.3, 2.0, 9.0])
 def test_gaussian_blur_equals_opencv(variance):
-    image = _textured(50, 70, 7).astype(np.float32)
+    image = textured(50, 70, 7).astype(np.float32)
     got = gaussian_blur(torch.from_numpy(image)[None, None], variance)[0, 0].numpy()
     np.testing.assert_allclose(got, cv2.GaussianBlur(image, (0, 0), np.sqrt(variance)), atol=2e-4)
 

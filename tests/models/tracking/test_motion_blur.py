@@ -10,17 +10,11 @@ import torch
 from core.errors import InputError
 from core.streak import streak_blur, streak_found
 from models.tracking.motion_blur import MotionBlurStreak, motion_blur_streak
+from tests.models.tracking.test_blur import textured
 
 
 def _textured(h: int, w: int, seed: int) -> np.ndarray:
-    """Random texture with detail at several scales and sharp-edged rectangles, float32 around 128."""
-    rng = np.random.default_rng(seed)
-    image = sum(cv2.GaussianBlur(rng.normal(0, 1, (h, w)), (0, 0), s) * s for s in (0.7, 1.5, 4.0))
-    image = 128 + 30 * image / image.std()
-    for _ in range(30):
-        x, y = rng.integers(0, w - 20), rng.integers(0, h - 20)
-        image[y : y + rng.integers(5, 20), x : x + rng.integers(5, 20)] += rng.uniform(-60, 60)
-    return image.astype(np.float32)
+    return textured(h, w, seed, rectangles=30).astype(np.float32)
 
 
 def _camera(image: np.ndarray, seed: int) -> torch.Tensor:

@@ -2,7 +2,6 @@
 
 import math
 
-import cv2
 import numpy as np
 import pytest
 import torch
@@ -15,6 +14,7 @@ from models.dcf.dft import band_index
 from models.tracking import PointTracker, extract_patches, good_features_to_track
 from models.tracking.motion_blur import motion_blur_streak
 from models.tracking.point_tracker import image_pyramid
+from tests.models.tracking.test_blur import textured
 
 
 def _smooth_image(h: int, w: int, seed: int) -> torch.Tensor:
@@ -393,12 +393,8 @@ def _streak_sequence(lengths: tuple[float, ...], angle: float, seed: int):
     """Crops of a broadband random texture (detail at several scales, sharp-edged rectangles) moving by (3, -2) px
     per frame, blurred by straight streaks of ``lengths`` px at ``angle`` (a panning camera), with sensor noise
     of std 1, rounded: frames, start points on a grid, their true last positions."""
-    rng = np.random.default_rng(seed)
-    big = sum(cv2.GaussianBlur(rng.normal(0, 1, (260, 260)), (0, 0), s) * s for s in (0.7, 1.5, 4.0))
-    big = 128 + 30 * big / big.std()
-    for _ in range(60):
-        x, y = rng.integers(0, 240, 2)
-        big[y : y + rng.integers(5, 20), x : x + rng.integers(5, 20)] += rng.uniform(-60, 60)
+    big = textured(260, 260, seed, rectangles=60)
+    rng = np.random.default_rng(seed + 1)
     frames = []
     for t, length in enumerate(lengths):  # content moves right and up: the crop window moves left and down
         crop = np.ascontiguousarray(big[30 + 2 * t : 222 + 2 * t, 30 - 3 * t : 222 - 3 * t], np.float32)
