@@ -1,4 +1,4 @@
-"""Straight motion blur of a frame, from its power cepstrum, and the tracker's test of whether to match it.
+"""Straight motion blur of a frame, from its power cepstrum (read by the point tracker's streak matching).
 
 A streak of length ``L`` px in direction ``u`` multiplies the spectrum by ``sinc(L u . w / 2)``, whose zeros
 repeat every ``2 pi / L`` rad/px along ``u``. The log power spectrum then carries a ripple of that period, and
@@ -48,15 +48,15 @@ def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int =
         lengths searched (shorter streaks barely blur; the default 4.4 px is a variance of about 1.6 px^2).
         noise_stride: pixel stride of the noise estimate (:func:`~models.dcf.image_noise_std`), whose power
         is added to the spectrum before the logarithm so that frequencies holding only noise stay flat.
+        crop: the cepstrum is taken of the central ``crop x crop`` px at most (a camera's streak is the same
+        everywhere; 4x cheaper on a 1024 x 436 frame).
     Returns:
         ``(B, 4)``: length (px), angle (rad in ``[0, pi)``, x towards y), score: the cepstral minimum's
         distance below the median of the searched offsets, in robust standard deviations (median absolute
-        deviation; strongly negative, e.g. below -10, for a streak, about -3 to -8 for frames without one) and
+        deviation; strongly negative, e.g. below -10, for a streak, about -2 to -9 for frames without one) and
         rival: the same for the lowest offset in a direction more than 20 degrees away (about -2 to -4 for a
         streak; as low as the score for the block grid of a heavily compressed frame, whose minima lie in
         several directions; :func:`core.streak.streak_found` decides with both).
-        crop: the cepstrum is taken of the central ``crop x crop`` px at most (a camera's streak is the same
-        everywhere; 4x cheaper on a 1024 x 436 frame).
     """
     if image.dim() != 4 or image.shape[1] != 1 or min(image.shape[-2:]) <= 2 * max_length:
         raise InputError(f"motion_blur_streak needs (B, 1, H, W) gray images larger than {2 * max_length} px a "

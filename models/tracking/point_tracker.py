@@ -215,8 +215,8 @@ class PointTracker(nn.Module):
         streak_score: cepstral score (:func:`~models.tracking.motion_blur.motion_blur_streak`) below which a frame
         counts as blurred by a straight streak (if no other direction scores below half of it,
         :func:`core.streak.streak_found`), which is then matched exactly (:meth:`_streak_matched_step`); None:
-        streaks are treated as any other blur. The default, -10, lies between the scores of the frames of the
-        shared real videos (-3 to -8) and those of streaks of 5 px and longer (-11 to -25).
+        streaks are treated as any other blur. The default, -10, lies between the scores of the shared real
+        frames (-2.2 to -9.8) and those of streaks of 5.4 px and longer (-11.2 to -20.8).
     """
 
     def __init__(
