@@ -20,8 +20,9 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   :meth:`PointTracker.step`, whose branches (retrain on a blurred previous frame, search a blurred copy) the
   runtime takes in numpy with ``cv2.GaussianBlur``; ``thresholds.blur_match_px2`` in the manifest (null: off).
 - ``streak.onnx``: ``frame`` -> ``streak`` (1, 4): length (px), angle (rad), cepstral score and rival of the
-  frame's straight motion blur (:mod:`models.tracking.motion_blur`); with ``thresholds.streak_score`` (null: off) the
-  runtime matches streaks as :meth:`PointTracker._streak_matched_step` does, with ``core.streak.streak_blur``.
+  frame's straight motion blur (:mod:`models.tracking.motion_blur`); with ``thresholds.streak_score`` (null: off)
+  and ``streak_match_px2`` the runtime matches streaks as :meth:`PointTracker._streak_matched_step` does, with
+  ``core.streak.streak_blur``.
 
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
 difference and the lost flags that differ.
@@ -156,7 +157,7 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                         "psr_rate": tracker.psr_rate,
                         "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
                         "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match,
-                        "streak_score": tracker.streak_score},
+                        "streak_score": tracker.streak_score, "streak_match_px2": tracker.streak_match},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
                       "search_sigmas": list(tracker.search_sigmas),
                       "good_features": {"quality": 0.01, "min_distance": 5}})

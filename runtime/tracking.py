@@ -61,6 +61,7 @@ class OnnxPointTracker:
         thresholds = self.bundle.section("thresholds")
         self.blur_match = thresholds.get("blur_match_px2")
         self.streak_score = thresholds.get("streak_score") if self.blur_match is not None else None
+        self.streak_match = thresholds.get("streak_match_px2")
         self.streak_graph = self.bundle.graph("streak") if self.streak_score is not None else None
         self.profile_graph, self.relative_graph = self.bundle.graph("profile"), self.bundle.graph("relative_blur")
 
@@ -155,7 +156,7 @@ class OnnxPointTracker:
         """One step with streak matching (``PointTracker._streak_matched_step``): the step graph's outputs and the
         streaks of the views the filters were last trained afresh on (``streak``: of ``previous``,
         ``new_streak``: of ``image``, ``template``: the filters' streaks before the step)."""
-        if streak_change([new_streak] if new_streak else [], template) <= self.blur_match:
+        if streak_change([new_streak] if new_streak else [], template) <= self.streak_match:
             return self.step_graph(image, previous, positions, flags, means, *filters), template
         matched = _streaked(previous, new_streak)
         flags, filters = self._retrained(matched, positions, flags)

@@ -217,6 +217,11 @@ class PointTracker(nn.Module):
         :func:`core.streak.streak_found`), which is then matched exactly (:meth:`_streak_matched_step`); None:
         streaks are treated as any other blur. The default, -10, lies between the scores of the shared real
         frames (-2.2 to -9.8) and those of streaks of 5.4 px and longer (-11.2 to -20.8).
+        streak_match: change of blur variance (px^2, in the direction it changes most) between a frame's streak
+        and those of the views the filters were last trained afresh on above which the streaks are matched;
+        twice ``blur_match`` by default, since streaks near the detection limit (about 5 px) flicker in and out
+        of detection in real video while the blur they stand for barely changes, and every matched step
+        restarts the sample memory.
     """
 
     def __init__(
@@ -238,6 +243,7 @@ class PointTracker(nn.Module):
         noise_reg: float = 30.0,
         blur_match: float | None = 2.0,
         streak_score: float | None = -10.0,
+        streak_match: float = 4.0,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -267,6 +273,9 @@ class PointTracker(nn.Module):
         if streak_score is not None and not streak_score < 0:
             raise InputError(f"streak_score must be a negative score or None, got {streak_score}")
         self.streak_score = streak_score
+        if not streak_match > 0:
+            raise InputError(f"streak_match must be a positive variance in px^2, got {streak_match}")
+        self.streak_match = streak_match
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
@@ -550,13 +559,13 @@ class PointTracker(nn.Module):
         """:meth:`forward` where this frame or the views the filters were last trained afresh on show a straight
         motion blur (``streak``: this frame's).
 
-        When the two blurs differ by more than ``blur_match`` px^2 in some direction
+        When the two blurs differ by more than ``streak_match`` px^2 in some direction
         (:func:`core.streak.streak_change`), each view gets the other's streak: the filters are retrained on the
         previous frame blurred by this frame's streak and search this frame blurred by the previous frame's, so
         both carry the same two streaks and no bias (a streak's sidelobes have the opposite sign of a
         Gaussian's, which a correlation filter reads as a shift along the streak). Otherwise the plain step
         runs. The radial power profiles of the Gaussian matching restart after such a step."""
-        if streak_change([streak] if streak else [], state.template) <= self.blur_match:
+        if streak_change([streak] if streak else [], state.template) <= self.streak_match:
             return replace(self._advance(forward, frame, state), streak=streak, template=state.template)
         retrained = self._retrained(self._streak_blurred(state.frame, streak), state)
         new = self._advance(forward, self._streak_blurred(frame, state.streak), retrained)

@@ -408,7 +408,7 @@ def _streak_sequence(lengths: tuple[float, ...], angle: float, seed: int):
 def test_streak_matching_removes_the_scatter_of_a_growing_motion_blur():
     """A motion blur growing from 2 to 14 px: the streaks are found (cepstral scores below the default -10 from 5
     px on) and matched exactly, several times more precise than the Gaussian stand-in of the plain blur
-    matching (0.30 against 1.00 px when written)."""
+    matching (0.33 against 1.00 px when written)."""
     frames, points, truth = _streak_sequence((2.0, 5.0, 8.0, 11.0, 14.0), 0.6, seed=11)
     scores = motion_blur_streak(torch.stack(frames)[:, None].float())[:, 2]
     assert (scores[1:] < -10).all(), scores
@@ -423,6 +423,8 @@ def test_streak_matching_removes_the_scatter_of_a_growing_motion_blur():
 def test_streak_score_is_checked():
     with pytest.raises(InputError, match="streak_score"):
         PointTracker("ccot", streak_score=3.0)
+    with pytest.raises(InputError, match="streak_match"):
+        PointTracker("ccot", streak_match=0.0)
 
 
 def test_search_prior_does_not_bias_a_clear_peak():
