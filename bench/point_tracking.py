@@ -3,24 +3,24 @@ OpenCV's pyramidal Lucas-Kanade (KLT) from the same good-features-to-track start
 
 Datasets: folders laid out like ``../shared/data/sintel/alley_1/clean`` (frames plus ``gt/``: Sintel, and the
 Middlebury pairs in ``../shared/data/middlebury/<Seq>``; from the first ground-truth flow on, chained over
-consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder>``), a seeded synthetic
-sequence with chained ground truth (``--synthetic``) and the synthetic stress conditions of
-:mod:`data.flow.stress` (``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion
-blur, fast motion, illumination change, JPEG, a long run) and real photographs seen through chains of small
-homographies under growing defocus or motion blur, JPEG compression or darkness (:mod:`data.flow.homography`,
-``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file stem>``, 6 frames) and real videos
-without ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named
-``roundtrip_<folder>``: the first ``--roundtrip-frames`` frames, then the same frames in reverse order back to the
-first, so every point's truth at the last frame is its start; this measures the drift and the false tracks
-that real motion, motion blur and deformation cause over many frames, but it would also reward a tracker that
-never moves, so it complements the sets with ground truth rather than replacing them; ``--roundtrip-conditions``
-adds sets of rows with every frame degraded as in the homography sets, at ``--roundtrip-strength`` (1: as their
-last frame), named ``roundtrip_<condition>_<folder>``). Metrics at the
-last frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px),
-``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
-``point_frames_per_s``, ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per
-second) and, where an occluder hid some points (``stress_occlusion``), ``occluded_lost_frac``: the fraction of
-those flagged lost. Lost points keep their last position for the EPE statistics and never count as inliers.
+consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder>``), a seeded synthetic sequence
+with chained ground truth (``--synthetic``) and the synthetic stress conditions of :mod:`data.flow.stress`
+(``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion blur, fast motion,
+illumination change, JPEG, a long run) and real photographs seen through chains of small homographies under growing
+defocus or motion blur, JPEG compression or darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named
+``homography_<condition>_<folder>_<file stem>``, 6 frames) and real videos without ground truth played forward and
+back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named ``roundtrip_<folder>``: ``--roundtrip-frames`` frames
+from ``--roundtrip-start`` (default 0) on, then the same frames in reverse order back to the first, so every point's
+truth at the last frame is its start; this measures the drift and the false tracks that real motion, motion blur and
+deformation cause over many frames, but it would also reward a tracker that never moves, so it complements the sets
+with ground truth rather than replacing them; ``--roundtrip-conditions`` adds sets of rows with every frame degraded
+as in the homography sets, at ``--roundtrip-strength`` (1: as their last frame), named
+``roundtrip_<condition>_<folder>``). Metrics at the last frame, per method and dataset: ``epe_median``,
+``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at`` (fraction not lost
+with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_s``, with KLT in the run
+``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder hid some points
+(``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep their last
+position for the EPE statistics and never count as inliers.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
@@ -144,16 +144,18 @@ def homography_dataset(image: str | Path, condition: str, n_points: int, seed: i
 
 
 def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing: int = 3, condition: str = "none",
-                      strength: float = 1.0, seed: int = 0) -> Dataset:
-    """The first ``n_frames`` frames of a real video (a folder of images, :func:`~core.frames.read_frames`) and
-    then the same frames back to the first (``2 n_frames - 1`` in all), every frame degraded by ``condition`` at
+                      strength: float = 1.0, seed: int = 0, start: int = 0) -> Dataset:
+    """``n_frames`` frames of a real video (a folder of images, :func:`~core.frames.read_frames`) from frame
+    ``start`` on and then the same frames back to the first (``2 n_frames - 1`` in all), every frame degraded by
+    ``condition`` at
     ``strength`` (:func:`data.flow.degrade`, seeded; ``motion`` in one direction drawn from the seed); the truth
     at the last frame is the start points themselves."""
-    if n_frames < 2:
-        raise InputError(f"a round trip needs at least 2 frames, got {n_frames}")
-    frames, _ = read_frames(folder, limit=n_frames)  # the frames played, not the whole video
-    if len(frames) < n_frames:
-        raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames}")
+    if n_frames < 2 or start < 0:
+        raise InputError(f"a round trip needs at least 2 frames from a start >= 0, got {n_frames} from {start}")
+    frames, _ = read_frames(folder, limit=start + n_frames)  # the frames played, not the whole video
+    if len(frames) < start + n_frames:
+        raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames} from frame {start}")
+    frames = frames[start:]
     if condition != "none":
         rng = np.random.default_rng([seed, HOMOGRAPHY_CONDITIONS.index(condition)])
         angle = rng.uniform(0, np.pi)
@@ -451,6 +453,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="real video frame folders to track forward and back to the first frame")
     parser.add_argument("--roundtrip-frames", type=int, default=12,
                         help="frames of each round-trip video played forward (then back)")
+    parser.add_argument("--roundtrip-start", type=int, default=0,
+                        help="the round trips' first frame (index into each video's sorted frames)")
     parser.add_argument("--roundtrip-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS, default=["none"],
                         metavar="CONDITION", help="degradations of the round-trip videos, each a set of rows: "
                         + ", ".join(HOMOGRAPHY_CONDITIONS))
@@ -505,7 +509,7 @@ def main(argv: list[str] | None = None) -> int:
             for folder in args.roundtrip:
                 name = "_".join(["roundtrip", *([condition] if condition != "none" else []), Path(folder).name])
                 datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing,
-                                                   condition, args.roundtrip_strength, args.seed)
+                                                   condition, args.roundtrip_strength, args.seed, args.roundtrip_start)
         if args.synthetic or not (datasets or args.stress is not None):
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
         for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:

@@ -91,8 +91,9 @@ def test_homography_rows_per_image_and_condition(tmp_path, capsys):
 
 
 def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
-    """``--roundtrip DIR``: the first ``--roundtrip-frames`` frames, then back to the first; the truth at the last
-    frame is the start; too short a video or too few frames is refused with the folder's name."""
+    """``--roundtrip DIR``: ``--roundtrip-frames`` frames (from ``start``), then back to the first; the truth at the
+    last frame is the start; too short a video, too few frames or a negative start is refused with the folder's
+    name."""
     import cv2
 
     rng = np.random.default_rng(1)
@@ -125,8 +126,15 @@ def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
         point_tracking.roundtrip_dataset(tmp_path, 4, 50, condition="light", strength=1.5)
     with pytest.raises(InputError, match=f"{tmp_path.name}.*asks for 6"):
         point_tracking.roundtrip_dataset(tmp_path, 6, 50)
+    with pytest.raises(InputError, match=f"{tmp_path.name}.*asks for 4 from frame 2"):
+        point_tracking.roundtrip_dataset(tmp_path, 4, 50, start=2)
     with pytest.raises(InputError, match="at least 2 frames"):
         point_tracking.roundtrip_dataset(tmp_path, 1, 50)
+    with pytest.raises(InputError, match="start >= 0"):
+        point_tracking.roundtrip_dataset(tmp_path, 3, 50, start=-1)
+    later = point_tracking.roundtrip_dataset(tmp_path, 3, 50, start=2)  # frames 2, 3, 4, 3, 2
+    for frame, t in zip(later.frames, [2, 3, 4, 3, 2], strict=True):
+        np.testing.assert_array_equal(frame, cv2.imread(str(tmp_path / f"{t:05d}.png"), cv2.IMREAD_GRAYSCALE))
 
 
 def test_tracker_settings_reach_the_dcf_trackers(capsys):
