@@ -9,8 +9,8 @@ next frame (pyramid, coarse-to-fine correlation, lost flags and filter updates i
 numpy state between the calls). Blur matching as in ``PointTracker.step``: the ``profile`` and ``relative_blur``
 graphs measure how much blurrier each frame is than the one the filters were last trained afresh on, and beyond
 the bundle's ``blur_match_px2`` the sharper view is blurred (``cv2.GaussianBlur``) before the search; where the
-``streak`` graph finds straight motion blur (a score below the bundle's ``streak_score``), each view is blurred by
-the other's streak instead (``core.streak``). The tracks
+``streak`` graph finds straight motion blur (``core.streak.streak_found`` with the bundle's ``streak_score``) that
+changes by more than its ``streak_match_px2``, each view is blurred by the other's streak instead. The tracks
 file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
 ``points``, ``method`` and ``frames``.
 """
@@ -140,12 +140,11 @@ class OnnxPointTracker:
             return [positions, flags, scores, means, *filters], profile
         return self.step_graph(image, previous, positions, flags, means, *filters), reference
 
-
     def _streak(self, image: np.ndarray) -> Streak | None:
         """The straight motion blur (length, angle) of a (1, 1, H, W) frame (``PointTracker._streak``); None where
-        the ``streak`` graph's scores show none (``core.streak.streak_found`` with the bundle's ``streak_score``),
-        where streak matching is off and where the frame is too small."""
-        if self.streak_graph is None or min(image.shape[2:]) <= 48:
+        the ``streak`` graph's scores show none (``core.streak.streak_found`` with the bundle's ``streak_score``)
+        and where streak matching is off (the bundle's smallest frame, 64 px, is large enough to measure)."""
+        if self.streak_graph is None:
             return None
         length, angle, score, rival = (float(v) for v in self.streak_graph(image)[0])
         return (length, angle) if streak_found(length, angle, score, rival, self.streak_score) else None

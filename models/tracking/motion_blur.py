@@ -28,6 +28,7 @@ from models.tracking.blur import symmetric_hann
 
 _MAD_TO_STD = 1.482602218505602  # std of a normal distribution over its median absolute deviation
 _RIVAL_ANGLE = math.radians(20)  # rad: directions this far from the streak's hold its rival
+MAX_LENGTH = 24  # px: the longest streak searched by default; frames need more than twice that a side
 
 
 def _search_offsets(min_length: float, max_length: int) -> tuple[Tensor, Tensor]:
@@ -39,7 +40,7 @@ def _search_offsets(min_length: float, max_length: int) -> tuple[Tensor, Tensor]
     return torch.from_numpy(dy[keep]), torch.from_numpy(dx[keep])
 
 
-def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int = 24, noise_stride: int = 4,
+def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int = MAX_LENGTH, noise_stride: int = 4,
                        crop: int = 320) -> Tensor:
     """The straight streak that best explains each image's blur, and how clearly the image shows it.
 
@@ -110,7 +111,8 @@ def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int =
 class MotionBlurStreak(nn.Module):
     """Module form of :func:`motion_blur_streak`: ``(B, 1, H, W)`` -> ``(B, 4)``."""
 
-    def __init__(self, min_length: float = 4.4, max_length: int = 24, noise_stride: int = 4, crop: int = 320) -> None:
+    def __init__(self, min_length: float = 4.4, max_length: int = MAX_LENGTH, noise_stride: int = 4,
+                 crop: int = 320) -> None:
         super().__init__()
         self.min_length, self.max_length, self.noise_stride, self.crop = min_length, max_length, noise_stride, crop
 

@@ -60,7 +60,7 @@ from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
-from models.tracking.motion_blur import motion_blur_streak
+from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
 
 METHODS = ("ccot", "ccot_ff", "mosse")
 DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
@@ -550,7 +550,8 @@ class PointTracker(nn.Module):
         show none (:func:`core.streak.streak_found` with ``streak_score``), where streak matching is off, where
         the frame is too small to measure and while the graph of :meth:`init` is being exported (the runtime
         measures streaks with a graph of their own)."""
-        if self.streak_score is None or self.blur_match is None or min(frame.shape[-2:]) <= 48 or _exporting():
+        too_small = min(frame.shape[-2:]) <= 2 * MAX_LENGTH
+        if self.streak_score is None or self.blur_match is None or too_small or _exporting():
             return None
         length, angle, score, rival = motion_blur_streak(frame).double()[0].tolist()
         return (length, angle) if streak_found(length, angle, score, rival, self.streak_score) else None
