@@ -154,7 +154,7 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                    "max_points": MAX_POINTS, "levels": tracker.levels},
             normalisation={"gray": "cv2.IMREAD_GRAYSCALE", "scale": 1.0},
             thresholds={"psr_threshold": tracker.psr_threshold, "psr_relative": tracker.psr_relative,
-                        "psr_rate": tracker.psr_rate,
+                        "psr_rate": tracker.psr_rate, "psr_recover": tracker.psr_recover,
                         "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
                         "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match,
                         "streak_score": tracker.streak_score, "streak_match_px2": tracker.streak_match},

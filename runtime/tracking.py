@@ -118,10 +118,13 @@ class OnnxPointTracker:
         keep = slice(0, 1) if single else slice(None)
         return tuple(np.stack(a)[:, keep] for a in (tracks, lost, psr))  # type: ignore[return-value]
 
-    def _retrained(self, image: np.ndarray, positions: np.ndarray, flags: np.ndarray) -> tuple[np.ndarray, list]:
-        """Lost flags and filters trained afresh on ``image`` at ``positions`` (lost points stay lost)."""
-        _, fresh_lost, _, _, *filters = self.init_graph(image, positions)
-        return flags | fresh_lost, filters
+    def _retrained(self, image: np.ndarray, positions: np.ndarray, flags: np.ndarray,
+                   filters: list) -> tuple[np.ndarray, list]:
+        """Lost flags and the tracked points' filters trained afresh on ``image`` at ``positions``; lost points stay
+        lost and keep their ``filters`` (``PointTracker._retrained``)."""
+        _, fresh_lost, _, _, *fresh = self.init_graph(image, positions)
+        keep = flags[None, None, :, None]
+        return flags | fresh_lost, [np.where(keep, old, new) for old, new in zip(filters, fresh, strict=True)]
 
     def _matched_step(self, image: np.ndarray, previous: np.ndarray, positions: np.ndarray, flags: np.ndarray,
                       means: np.ndarray, filters: list, reference: np.ndarray, last: np.ndarray, profile: np.ndarray):
@@ -131,12 +134,12 @@ class OnnxPointTracker:
         change = float(self.relative_graph(reference, profile)[0])
         if change > self.blur_match:  # blurrier: retrain on the previous frame blurred to this one
             matched = _blurred(previous, max(float(self.relative_graph(last, profile)[0]), 0.0))
-            flags, filters = self._retrained(matched, positions, flags)
+            flags, filters = self._retrained(matched, positions, flags, filters)
             return self.step_graph(image, matched, positions, flags, means, *filters), profile
         if change < -self.blur_match:  # sharper: search a copy blurred to the filters' level, retrain on the frame
             positions, flags, scores, means, *filters = self.step_graph(_blurred(image, -change), previous, positions,
                                                                         flags, means, *filters)
-            flags, filters = self._retrained(image, positions, flags)
+            flags, filters = self._retrained(image, positions, flags, filters)
             return [positions, flags, scores, means, *filters], profile
         return self.step_graph(image, previous, positions, flags, means, *filters), reference
 
@@ -158,7 +161,7 @@ class OnnxPointTracker:
         if streak_change([new_streak] if new_streak else [], template) <= self.streak_match:
             return self.step_graph(image, previous, positions, flags, means, *filters), template
         matched = _streaked(previous, new_streak)
-        flags, filters = self._retrained(matched, positions, flags)
+        flags, filters = self._retrained(matched, positions, flags, filters)
         outputs = self.step_graph(_streaked(image, streak), matched, positions, flags, means, *filters)
         return outputs, tuple(s for s in (streak, new_streak) if s is not None)
 

@@ -9,10 +9,12 @@ contrast, so frequencies that hold only noise in a blurred or dark patch do not 
 the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is weak, both against the frame's
 other points and against the point's own PSR history, and that either do not track back to where they came from
 (a forward-backward test on level 0) or whose unweighted level-0 peak lies elsewhere than the prior's choice (an
-ambiguous match) are flagged lost and frozen at their last position. The cues are needed together: each alone
-fires on correct tracks in dark, blurred or compressed frames or, frame after frame, on points whose texture
-always gives a low PSR, and a false alarm is final; together they still catch many of the points that an
-occluder covers.
+ambiguous match) are flagged lost and frozen at their last position, with the filters they had. The cues are
+needed together: each alone fires on correct tracks in dark, blurred or compressed frames or, frame after frame,
+on points whose texture always gives a low PSR; together they still catch many of the points that an occluder
+covers. A lost point is still searched from where it was frozen, and it comes back where its filters find a peak
+that is strong both against the frame's tracked points and against its own history and that tracks back
+(``psr_recover``): an occluder has moved on, or the flag was a false alarm.
 Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position: the search
 sample shifted in the Fourier domain. Before all this, a frame whose blur differs from that of the frame the
 filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
@@ -202,7 +204,10 @@ class PointTracker(nn.Module):
         and either tracking it back to the previous frame misses by more than ``fb_threshold`` px
         (:meth:`_backward_error`) or its unweighted level-0 peak is more than ``fb_threshold`` px from the peak
         the displacement prior chose (None: the PSR test alone), or when its PSR is below ``psr_threshold``
-        (no peak at all). psr_exclude: PSR exclusion window.
+        (no peak at all). psr_recover: a lost point comes back when its PSR passes the frame test above and is at
+        least ``psr_recover`` times its running mean from before it was lost and it passes the forward-backward
+        test (one with no history, lost in its first step or outside the image from the start, never does);
+        None: lost is final. psr_exclude: PSR exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
         the sample spectra and the transforms shrink with it.
@@ -237,6 +242,7 @@ class PointTracker(nn.Module):
         psr_threshold: float = 2.5,
         psr_relative: float = 0.3,
         psr_rate: float | None = 0.3,
+        psr_recover: float | None = 0.7,
         fb_threshold: float | None = 1.0,
         psr_exclude: int = 7,
         band: float | tuple[float, ...] = 0.7,
@@ -264,6 +270,9 @@ class PointTracker(nn.Module):
         if psr_rate is not None and not 0 < psr_rate <= 1:
             raise InputError(f"psr_rate must lie in (0, 1] or be None, got {psr_rate}")
         self.psr_rate = psr_rate
+        if psr_recover is not None and not psr_recover > 0:
+            raise InputError(f"psr_recover must be positive or None, got {psr_recover}")
+        self.psr_recover = psr_recover
         if not noise_reg >= 0:
             raise InputError(f"noise_reg must be a non-negative number, got {noise_reg}")
         self.noise_reg = noise_reg
@@ -426,7 +435,7 @@ class PointTracker(nn.Module):
         """
         pyramid = image_pyramid(frame, self.levels)
         noise = self._noise_variance(frame)
-        start = torch.where(lost.unsqueeze(-1), torch.zeros_like(positions), positions)
+        start = torch.where(torch.isfinite(positions), positions, torch.zeros_like(positions))  # lost: where frozen
         d = torch.zeros_like(positions)
         spectra, centres = [], []
         for level in reversed(range(self.levels)):
@@ -449,16 +458,26 @@ class PointTracker(nn.Module):
         # centres its samples on the target), cheaper than extracting again and at least as accurate. Level 0's
         # also serves the forward-backward test; lost points learn nothing (eta 0), whatever their sample.
         sample = self._shift(*spectra[0], moved - centres[0], 0)
-        lost = lost | ~self._inside(moved, frame)
-        weak = ~(psr >= self._lost_threshold(psr, lost))
+        inside = self._inside(moved, frame)
+        was_lost, lost = lost, lost | ~inside
+        threshold = self._lost_threshold(psr, lost)
+        weak = ~(psr >= threshold)
         if self.psr_rate is not None:  # and weak against the point's own history (always, before it has one)
             weak = weak & ~(psr >= self.psr_relative * psr_mean)
+        # a lost point comes back where its frozen filters find a peak as strong as the frame's tracked points'
+        # and nearly as strong as its own were before (never: a point without history, psr_mean inf)
+        back = was_lost & inside & (psr >= threshold) & (psr >= self.psr_threshold)
+        if self.psr_recover is None:
+            back = torch.zeros_like(back)
+        else:
+            back = back & (psr >= self.psr_recover * psr_mean)
         if self.fb_threshold is not None:
             # a weak point whose unweighted level-0 peak lies elsewhere than the prior's choice is ambiguous;
-            # the other weak points take the forward-backward test
-            ambiguous = weak & (_peak_gap(psr_argmax, argmax, score.shape[0]) > self.fb_threshold)
-            weak = ambiguous | self._fails_backward(weak & ~ambiguous, previous, start, *sample, noise)
-        lost = lost | weak | ~(psr >= self.psr_threshold)
+            # the other weak points, and the lost points that would come back, take the forward-backward test
+            ambiguous = (weak | back) & (_peak_gap(psr_argmax, argmax, score.shape[0]) > self.fb_threshold)
+            misses = self._fails_backward((weak | back) & ~ambiguous, previous, start, *sample, noise)
+            weak, back = weak & (ambiguous | misses), back & ~(ambiguous | misses)
+        lost = (lost | weak | ~(psr >= self.psr_threshold)) & ~back
         psr_mean = self._psr_mean(psr_mean, psr, lost)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
         target = torch.where(lost.unsqueeze(-1), start, moved)
@@ -591,10 +610,12 @@ class PointTracker(nn.Module):
         return TrackerState(frame, positions, lost, psr, psr_mean, tuple(filters))
 
     def _retrained(self, frame: Tensor, state: TrackerState) -> TrackerState:
-        """``state`` with every point's filters trained afresh on ``frame`` ``(1, 1, H, W)`` at its positions (lost
-        points stay lost)."""
+        """``state`` with the filters of every tracked point trained afresh on ``frame`` ``(1, 1, H, W)`` at its
+        position; lost points stay lost and keep the filters they were lost with (they may come back)."""
         fresh = self._train(frame, state.positions)
-        return replace(fresh, lost=fresh.lost | state.lost, psr=state.psr, psr_mean=state.psr_mean)
+        keep = state.lost[None, None, :, None]
+        filters = tuple(torch.where(keep, old, new) for old, new in zip(state.filters, fresh.filters, strict=True))
+        return replace(fresh, lost=fresh.lost | state.lost, psr=state.psr, psr_mean=state.psr_mean, filters=filters)
 
     def _blur_matched_step(self, forward, frame: Tensor, state: TrackerState) -> TrackerState:
         """:meth:`forward` with the frame and the filters brought to one blur level (``blur_match``).

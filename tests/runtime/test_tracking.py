@@ -1,6 +1,6 @@
 """The runtime's point tracker: its command, run without torch, against the PyTorch tracker on the same frames
 and start points (tracks within 0.01 px, the same lost flags), through blur and motion-blur changes too, OpenCV's
-start points, a lone point, frames that do not fit the bundle."""
+start points, a lone point, a point that an occluder hides and uncovers, frames that do not fit the bundle."""
 
 import cv2
 import numpy as np
@@ -15,6 +15,7 @@ from models.tracking import PointTracker
 from models.tracking.blur import radial_power_profile, relative_blur
 from models.tracking.motion_blur import motion_blur_streak
 from runtime.tracking import OnnxPointTracker, good_features
+from tests.models.tracking.test_point_tracker import _smooth_image, _translate
 
 pytestmark = pytest.mark.slow  # uses an exported bundle
 
@@ -113,3 +114,24 @@ def test_streak_matching_branches_match_pytorch(tracking_bundle) -> None:
                                                          torch.from_numpy(start).float())
     np.testing.assert_array_equal(lost, ref_lost.numpy())
     assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+
+
+@pytest.mark.parametrize("blur", [0.0, 2.0])
+def test_a_lost_point_comes_back_as_in_pytorch(tracking_bundle, blur) -> None:
+    """A disc hides one point in frames 2-3 and is gone from frame 4: the runtime loses it and brings it back in
+    the same frames as PyTorch, with the same tracks and PSRs; with the frames from 4 on blurred, both retrain the
+    tracked points' filters while the hidden point keeps the ones it was lost with (its PSR tells)."""
+    img = _smooth_image(160, 160, 8)
+    ys, xs = np.mgrid[:160, :160]
+    disc = torch.from_numpy((xs - 46.0) ** 2 + (ys - 44.0) ** 2 <= 24.0**2)
+    frames = [_translate(img, 3.0 * t, 2.0 * t) for t in range(7)]
+    frames[2:4] = [torch.where(disc, _smooth_image(160, 160, 9), f) for f in frames[2:4]]
+    images = [f.float().numpy() for f in frames]
+    images[4:] = [cv2.GaussianBlur(f, (0, 0), blur) if blur else f for f in images[4:]]
+    start = np.array([[40.0, 40.0], [100.0, 60.0], [120.0, 120.0], [60.0, 110.0], [110.0, 30.0]])
+    tracks, lost, psr = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
+    ref = PointTracker("ccot").track([torch.from_numpy(f) for f in images], torch.from_numpy(start).float())
+    np.testing.assert_array_equal(lost, ref[1].numpy())
+    assert np.abs(tracks - ref[0].numpy()).max() < 0.01
+    np.testing.assert_allclose(psr[1:], ref[2][1:].numpy(), rtol=1e-3)
+    assert lost[2:4, 0].all() and lost[-1, 0] == bool(blur)  # back unless the blur hides it from its old filters

@@ -227,6 +227,47 @@ def test_occluded_point_is_lost_while_the_others_are_kept():
         np.testing.assert_allclose(tracks[1, 1:] - points[1:].double(), np.tile(d, (4, 1)), atol=0.05)
 
 
+def test_occluded_point_comes_back_where_it_is_once_uncovered():
+    """An opaque disc covers one point in frames 2-3 of a steady translation and is gone from frame 4: the point is
+    lost while covered and back from frame 5 (frame 4's forward-backward test still meets the disc in frame 3)
+    at its true position, the exact translation, although it moved 12 x 8 px while frozen; with
+    ``psr_recover=None`` it stays lost, and a point outside the image from the start (no PSR history) never
+    comes back."""
+    img = _smooth_image(160, 160, 8)
+    d = torch.tensor([3.0, 2.0], dtype=torch.float64)
+    ys, xs = torch.meshgrid(torch.arange(160.0), torch.arange(160.0), indexing="ij")
+    disc = (xs - 46.0) ** 2 + (ys - 44.0) ** 2 <= 24.0**2
+    cover = _smooth_image(160, 160, 9)
+    frames = [_translate(img, *(t * d).tolist()) for t in range(7)]
+    frames[2:4] = [torch.where(disc, cover, f) for f in frames[2:4]]
+    points = torch.tensor([[40.0, 40.0], [100.0, 60.0], [120.0, 120.0], [60.0, 110.0], [110.0, 30.0],
+                           [-3.0, 80.0]], dtype=torch.float64)
+    tracks, lost, _ = PointTracker("ccot").double().track(frames, points)
+    assert lost[:, 0].tolist() == [False, False, True, True, True, False, False]
+    assert not lost[:, 1:5].any() and lost[:, 5].all()
+    assert (tracks[6, :5] - (points[:5] + 6 * d)).norm(dim=-1).max() < 0.05
+    _, final, _ = PointTracker("ccot", psr_recover=None).double().track(frames, points)
+    assert final[2:, 0].all() and not final[:, 1:5].any()
+    with pytest.raises(InputError, match="psr_recover"):
+        PointTracker(psr_recover=0.0)
+
+
+def test_retraining_keeps_the_filters_of_lost_points():
+    """Blur matching retrains the filters on another view; a lost point keeps the ones it was lost with (so that it
+    can come back), the tracked points get exactly those of a fresh start on that view."""
+    tracker = PointTracker("ccot").double()
+    points = torch.tensor([[40.0, 40.0], [100.0, 60.0], [70.0, 90.0]], dtype=torch.float64)
+    state = tracker.init(_smooth_image(128, 128, 4), points)
+    state.lost[1] = True
+    other = _smooth_image(128, 128, 5)[None, None]
+    retrained, fresh = tracker._retrained(other, state), tracker._train(other, points)
+    assert retrained.lost.tolist() == [False, True, False]
+    for kept, old, new in zip(retrained.filters, state.filters, fresh.filters, strict=True):
+        torch.testing.assert_close(kept[:, :, 1], old[:, :, 1], rtol=0, atol=0)
+        torch.testing.assert_close(kept[:, :, [0, 2]], new[:, :, [0, 2]], rtol=0, atol=0)
+        assert not torch.allclose(old[:, :, 1], new[:, :, 1])
+
+
 def test_bad_input():
     img = torch.rand(64, 64) * 255
     with pytest.raises(InputError, match="size"):
