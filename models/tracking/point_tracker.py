@@ -25,15 +25,15 @@ the filters are retrained on the previous frame blurred by this frame's streak a
 blurred by the previous frame's (:meth:`_streak_matched_step`), since a Gaussian stand-in for a streak leaves
 about a pixel of scatter along it.
 
-Cost: the patches are small (default 21 px at level 0, which sets the accuracy, and 15 px on three coarser levels,
-the coarsest of which bounds the largest motion at about 60 px per frame), the filters keep only the lower 70 % of
-the frequencies (band-limited, as in C-COT) and their DFTs are real matrix products
-(:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation folded in; Newton refinement on
-the Fourier series runs where it sets the output (level 0), the coarser levels take the grid peak refined by a
-parabola. Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``, so that
-each transform is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is applied
-to the spectrum (the mean as a multiple of the window's spectrum), so the pixel-sized arrays are only read, by two
-reductions and the transform.
+Cost: the patches are small (default 21 px at every level, as KLT's window: level 0's sets the accuracy, the
+coarsest bounds the largest motion at about 80 px per frame), the filters keep only the lower 70 % of the
+frequencies at level 0 and 50 % at the coarser levels (band-limited, as in C-COT) and their DFTs are real matrix
+products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation folded in; Newton
+refinement on the Fourier series runs where it sets the output (level 0), the coarser levels take the grid peak
+refined by a parabola. Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
+so that each transform is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is
+applied to the spectrum (the mean as a multiple of the window's spectrum), so the pixel-sized arrays are only read,
+by two reductions and the transform.
 
 Variants: ``ccot`` (continuous filter, exponentially decaying sample weights = a sample memory), ``ccot_ff``
 (continuous filter retrained from the newest sample only, ``eta = 1``) and ``mosse`` (grid peak plus parabola
@@ -73,6 +73,7 @@ _PYRDOWN_TAPS = (1.0, 5.0, 10.0, 10.0, 5.0, 1.0)
 # the variance of white noise after one pyramid level: the squared taps summed, over both axes
 _PYRDOWN_NOISE_GAIN = (sum(t * t for t in _PYRDOWN_TAPS) / sum(_PYRDOWN_TAPS) ** 2) ** 2
 _SEARCH_SIGMA = 3.0  # px: the default displacement prior of the fine levels (PointTracker's search_sigma)
+_FINE_BAND, _COARSE_BAND = 0.7, 0.5  # default band of level 0 and of the coarser levels (PointTracker's band)
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
 
 
@@ -210,7 +211,8 @@ class PointTracker(nn.Module):
         None: lost is final. psr_exclude: PSR exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
-        the sample spectra and the transforms shrink with it.
+        the sample spectra and the transforms shrink with it. None: 0.7 at level 0, 0.5 at the coarser levels,
+        which only have to land the next level's search within a pixel.
         noise_reg: weight of the noise-adaptive regulariser (0: off): the filter's denominator gains
         ``noise_reg`` times the expected power of the frame's noise in every frequency of the point's
         normalised sample (:meth:`_noise_power`), so frequencies where a blurred, dark or low-contrast patch
@@ -233,7 +235,7 @@ class PointTracker(nn.Module):
         self,
         method: str = "ccot",
         levels: int = 4,
-        patch_size: int | tuple[int, ...] = (21, 15, 15, 15),
+        patch_size: int | tuple[int, ...] = 21,
         sigma: float = 1.0,
         eta: float | None = None,
         reg_rel: float = 1e-2,
@@ -245,7 +247,7 @@ class PointTracker(nn.Module):
         psr_recover: float | None = 0.7,
         fb_threshold: float | None = 1.0,
         psr_exclude: int = 7,
-        band: float | tuple[float, ...] = 0.7,
+        band: float | tuple[float, ...] | None = None,
         noise_reg: float = 30.0,
         blur_match: float | None = 2.0,
         streak_score: float | None = -10.0,
@@ -285,6 +287,8 @@ class PointTracker(nn.Module):
         if not streak_match > 0:
             raise InputError(f"streak_match must be a positive variance in px^2, got {streak_match}")
         self.streak_match = streak_match
+        if band is None:
+            band = (_FINE_BAND,) + (_COARSE_BAND,) * (levels - 1)
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")

@@ -291,7 +291,8 @@ def test_pyramid_equals_kornia_pyrdown_away_from_the_border():
 
 
 def test_per_level_settings_are_checked():
-    assert PointTracker("ccot").sizes == (21, 15, 15, 15)
+    assert PointTracker("ccot").sizes == (21, 21, 21, 21) and PointTracker("ccot").bands == (7, 5, 5, 5)
+    assert PointTracker("ccot", levels=2, newton_iterations=2).bands == (7, 5)
     assert PointTracker("ccot", levels=3, patch_size=(21, 15, 25), newton_iterations=2).sizes == (21, 15, 25)
     with pytest.raises(InputError, match="one value per pyramid level"):
         PointTracker("ccot", patch_size=(21, 15))
