@@ -465,7 +465,7 @@ class PointTracker(nn.Module):
         inside = self._inside(moved, frame)
         was_lost, lost = lost, lost | ~inside
         threshold = self._lost_threshold(psr, lost)
-        weak = ~(psr >= threshold)
+        weak = ~lost & ~(psr >= threshold)  # of the points still tracked
         if self.psr_rate is not None:  # and weak against the point's own history (always, before it has one)
             weak = weak & ~(psr >= self.psr_relative * psr_mean)
         # a lost point comes back where its frozen filters find a peak as strong as the frame's tracked points'
