@@ -470,11 +470,10 @@ class PointTracker(nn.Module):
             weak = weak & ~(psr >= self.psr_relative * psr_mean)
         # a lost point comes back where its frozen filters find a peak as strong as the frame's tracked points'
         # and nearly as strong as its own were before (never: a point without history, psr_mean inf)
-        back = was_lost & inside & (psr >= threshold) & (psr >= self.psr_threshold)
-        if self.psr_recover is None:
-            back = torch.zeros_like(back)
-        else:
-            back = back & (psr >= self.psr_recover * psr_mean)
+        back = torch.zeros_like(lost)
+        if self.psr_recover is not None:
+            strong = (psr >= threshold) & (psr >= self.psr_threshold) & (psr >= self.psr_recover * psr_mean)
+            back = was_lost & inside & strong
         if self.fb_threshold is not None:
             # a weak point whose unweighted level-0 peak lies elsewhere than the prior's choice is ambiguous;
             # the other weak points, and the lost points that would come back, take the forward-backward test
