@@ -8,19 +8,20 @@ with chained ground truth (``--synthetic``) and the synthetic stress conditions 
 (``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion blur, fast motion,
 illumination change, JPEG, a long run) and real photographs seen through chains of small homographies under growing
 defocus or motion blur, JPEG compression or darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named
-``homography_<condition>_<folder>_<file stem>``, 6 frames) and real videos without ground truth played forward and
-back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named ``roundtrip_<folder>``: ``--roundtrip-frames`` frames
-from ``--roundtrip-start`` (default 0) on, then the same frames in reverse order back to the first, so every point's
-truth at the last frame is its start; this measures the drift and the false tracks that real motion, motion blur and
-deformation cause over many frames, but it would also reward a tracker that never moves, so it complements the sets
-with ground truth rather than replacing them; ``--roundtrip-conditions`` adds sets of rows with every frame degraded
-as in the homography sets, at ``--roundtrip-strength`` (1: as their last frame), named
-``roundtrip_<condition>_<folder>``). Metrics at the last frame, per method and dataset: ``epe_median``,
-``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at`` (fraction not lost
-with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_s``, with KLT in the run
-``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder hid some points
-(``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep their last
-position for the EPE statistics and never count as inliers.
+``homography_<condition>_<folder>_<file stem>``, 6 frames; ``--homography-cameras moving fixed`` adds the same sets
+seen by a fixed camera, as the Oxford sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs
+only those) and real videos without ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS
+folders, named ``roundtrip_<folder>``: ``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on, then
+the same frames in reverse order back to the first, so every point's truth at the last frame is its start; this
+measures the drift and the false tracks that real motion, motion blur and deformation cause over many frames, but it
+would also reward a tracker that never moves, so it complements the sets with ground truth rather than replacing
+them; ``--roundtrip-conditions`` adds sets of rows with every frame degraded as in the homography sets, at
+``--roundtrip-strength`` (1: as their last frame), named ``roundtrip_<condition>_<folder>``). Metrics at the last
+frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px),
+``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
+``point_frames_per_s``, ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per
+second) and, where an occluder hid some points (``stress_occlusion``), ``occluded_lost_frac``: the fraction of those
+flagged lost. Lost points keep their last position for the EPE statistics and never count as inliers.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
@@ -135,10 +136,10 @@ def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0, 
 
 
 def homography_dataset(image: str | Path, condition: str, n_points: int, seed: int = 0, spacing: int = 3,
-                       frames: int = 6) -> Dataset:
+                       frames: int = 6, moving: bool = True) -> Dataset:
     """A real photograph (read as gray) through ``frames`` chained homographies under ``condition``
-    (:func:`data.flow.homography_sequence`), ground truth at the last frame."""
-    seq = homography_sequence(read_frame_gray(image), condition, frames, seed)
+    (:func:`data.flow.homography_sequence`; ``moving=False``: a fixed camera), ground truth at the last frame."""
+    seq = homography_sequence(read_frame_gray(image), condition, frames, seed, moving=moving)
     frames_u8, points, tracks, valid = _tracked(seq, n_points, spacing)
     return Dataset(frames_u8, points, tracks[-1], valid[-1])
 
@@ -449,6 +450,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--homography-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS,
                         default=["blur", "motion", "jpeg", "light"], metavar="CONDITION",
                         help="degradations of the homography sequences: " + ", ".join(HOMOGRAPHY_CONDITIONS))
+    parser.add_argument("--homography-cameras", nargs="+", choices=("moving", "fixed"), default=["moving"],
+                        help="moving: the chained homographies; fixed: the same frames' degradation with a camera "
+                        "that does not move (as in the Oxford sets), rows named homography_fixed_<condition>_...")
     parser.add_argument("--roundtrip", nargs="+", action="extend", default=[], metavar="DIR",
                         help="real video frame folders to track forward and back to the first frame")
     parser.add_argument("--roundtrip-frames", type=int, default=12,
@@ -500,11 +504,14 @@ def main(argv: list[str] | None = None) -> int:
         for folder in args.sintel:
             path = Path(folder)
             datasets[f"{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points, args.spacing)
-        for condition in args.homography_conditions if args.homography else []:
-            for image in args.homography:
-                path = Path(image)
-                name = f"homography_{condition}_{path.parent.name}_{path.stem}"
-                datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing)
+        for camera in args.homography_cameras if args.homography else []:
+            for condition in args.homography_conditions:
+                for image in args.homography:
+                    path = Path(image)
+                    name = "_".join(["homography", *(["fixed"] if camera == "fixed" else []), condition,
+                                     path.parent.name, path.stem])
+                    datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing,
+                                                        moving=camera == "moving")
         for condition in args.roundtrip_conditions if args.roundtrip else []:
             for folder in args.roundtrip:
                 name = "_".join(["roundtrip", *([condition] if condition != "none" else []), Path(folder).name])

@@ -15,7 +15,9 @@ to ``step`` px), then degraded at strength ``s = t / (T - 1)``:
 - ``none``: the geometry alone.
 
 Every frame gets sensor noise of std 1 gray level before the 8-bit rounding. The geometry depends on the seed
-only, so the conditions of one seed differ in the degradation alone. A point ``x`` of frame 0 is at
+only, so the conditions of one seed differ in the degradation alone. With ``moving=False`` the camera is fixed
+(every ``H_t`` the identity), as in the Oxford sets themselves, whose frames differ in the degradation alone
+(and in the noise). A point ``x`` of frame 0 is at
 ``H_t x`` in frame ``t``; it is valid while it stays 6 px inside every frame. Seeded: the same (image,
 condition, seed) gives the same frames.
 """
@@ -95,11 +97,13 @@ def degrade(
 
 def homography_sequence(
     image: np.ndarray, condition: str, frames: int = 6, seed: int = 0, step: float = 6.0,
-    motion_angle: float | None = None,
+    motion_angle: float | None = None, moving: bool = True,
 ) -> HomographySequence:
     """``frames`` views of a gray ``image`` ``(H, W)`` (values in [0, 255]) under ``condition`` (one of
     :data:`HOMOGRAPHY_CONDITIONS`), moving up to about ``step`` px per frame plus the rotation and scale
-    (``motion_angle``: the motion blur's direction in radians, x towards y; None: drawn from the seed)."""
+    (``motion_angle``: the motion blur's direction in radians, x towards y; None: drawn from the seed;
+    ``moving=False``: a fixed camera, every homography the identity, the frames degraded as in the moving
+    sequence of the same seed)."""
     if condition not in HOMOGRAPHY_CONDITIONS:
         choices = ", ".join(HOMOGRAPHY_CONDITIONS)
         raise InputError(f"unknown homography condition {condition!r}; choose one of {choices}")
@@ -110,6 +114,8 @@ def homography_sequence(
         raise InputError(f"a sequence needs at least 2 frames, got {frames}")
     height, width = image.shape
     chain = _homographies(np.random.default_rng(seed), frames, width, height, step)  # the same for every condition
+    if not moving:
+        chain = np.broadcast_to(np.eye(3), chain.shape).copy()
     rng = np.random.default_rng([seed, HOMOGRAPHY_CONDITIONS.index(condition)])
     angle = rng.uniform(0, np.pi) if condition == "motion" and motion_angle is None else (motion_angle or 0.0)
     source = image.astype(np.float32)

@@ -69,8 +69,9 @@ def test_stress_conditions_are_rows_with_occlusion_recall(capsys):
 
 
 def test_homography_rows_per_image_and_condition(tmp_path, capsys):
-    """``--homography A B`` with two conditions gives four rows named by condition, folder and file; a missing
-    image is refused with its name."""
+    """``--homography A B`` with two conditions gives four rows named by condition, folder and file;
+    ``--homography-cameras moving fixed`` adds the four fixed-camera rows; a missing image is refused with its
+    name."""
     import cv2
 
     rng = np.random.default_rng(0)
@@ -86,6 +87,13 @@ def test_homography_rows_per_image_and_condition(tmp_path, capsys):
     assert set(result) == {f"homography_{c}_{f}_img" for c in ("blur", "none") for f in ("a", "b")}
     for row in result.values():
         assert row["frames"] == 6 and 0 < row["evaluated_points"] <= row["points"] <= 40
+    argv = [*argv[:4], "--homography-cameras", "moving", "fixed", *argv[4:]]
+    assert point_tracking.main(argv) == 0
+    both = json.loads(capsys.readouterr().out)["datasets"]
+    fixed = {f"homography_fixed_{c}_{f}_img" for c in ("blur", "none") for f in ("a", "b")}
+    assert set(both) == set(result) | fixed
+    for name in fixed:  # nothing moves: KLT stays within a pixel of the start points on these textures
+        assert both[name]["methods"]["klt"]["epe_median"] < 1.0
     with pytest.raises(InputError, match="missing.png"):
         point_tracking.main(["--homography", str(tmp_path / "missing.png"), "--json"])
 

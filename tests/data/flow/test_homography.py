@@ -44,6 +44,24 @@ def test_ground_truth_follows_the_content():
         assert moved < 2.5 and wrong > 3 * moved, (t, moved, wrong)  # the noise (std 1 per frame) is what is left
 
 
+def test_fixed_camera_keeps_the_content_in_place():
+    """``moving=False``: every homography the identity, the truth the start points, and each frame the moving
+    sequence's degradation of the unwarped image (same seed: frame 0 equal; later frames match a direct degradation
+    with the same random stream)."""
+    image = _image()
+    fixed = homography_sequence(image, "jpeg", frames=5, seed=4, moving=False)
+    np.testing.assert_array_equal(fixed.homographies, np.broadcast_to(np.eye(3), (5, 3, 3)))
+    points = np.array([[20.0, 30.0], [100.5, 60.25]])
+    tracks, valid = fixed.track(points)
+    np.testing.assert_allclose(tracks, np.broadcast_to(points, (5, 2, 2)))
+    assert valid.all()
+    moving = homography_sequence(image, "jpeg", frames=5, seed=4)
+    np.testing.assert_array_equal(fixed.frames[0], moving.frames[0])
+    rng = np.random.default_rng([4, HOMOGRAPHY_CONDITIONS.index("jpeg")])
+    expected = [degrade(image.astype(np.float32), "jpeg", t / 4, rng) for t in range(5)]
+    np.testing.assert_array_equal(fixed.frames, np.stack(expected))
+
+
 def test_valid_points_stay_inside_every_frame():
     seq = homography_sequence(_image(), "none", frames=6, seed=2, step=15.0)
     points = np.array([[3.0, 60.0], [80.0, 60.0], [159.0, 119.0]])
