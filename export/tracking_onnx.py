@@ -157,7 +157,8 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                         "psr_rate": tracker.psr_rate, "psr_recover": tracker.psr_recover,
                         "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
                         "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match,
-                        "streak_score": tracker.streak_score, "streak_match_px2": tracker.streak_match},
+                        "streak_score": tracker.streak_score, "streak_match_px2": tracker.streak_match,
+                        "block_limit": tracker.block_limit},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
                       "search_sigmas": list(tracker.search_sigmas),
                       "good_features": {"quality": 0.01, "min_distance": 5}})

@@ -15,6 +15,9 @@ on points whose texture always gives a low PSR; together they still catch many o
 covers. A lost point is still searched from where it was frozen, and it comes back where its filters find a peak
 that is strong both against the frame's tracked points and against its own history and that tracks back
 (``psr_recover``): an occluder has moved on, or the flag was a false alarm.
+In a frame compressed until its 8 px codec blocks are nearly flat (a block-grid ratio above ``block_limit``,
+:func:`~models.tracking.compression.block_grid_ratio`) the two finest levels, on which a block spans more than
+2 px, match the blocks rather than the scene: their corrections are dropped and the coarser levels' estimate stands.
 Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position: the search
 sample shifted in the Fourier domain. Before all this, a frame whose blur differs from that of the frame the
 filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
@@ -61,6 +64,7 @@ from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
+from models.tracking.compression import block_grid_ratio
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
 
@@ -75,6 +79,7 @@ _PYRDOWN_NOISE_GAIN = (sum(t * t for t in _PYRDOWN_TAPS) / sum(_PYRDOWN_TAPS) **
 _SEARCH_SIGMA = 3.0  # px: the default displacement prior of the fine levels (PointTracker's search_sigma)
 _FINE_BAND, _COARSE_BAND = 0.7, 0.5  # default band of level 0 and of the coarser levels (PointTracker's band)
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
+_BLOCK_LEVELS = 2  # the finest levels, on which an 8 px codec block spans more than 2 px (PointTracker's block_limit)
 
 
 def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
@@ -229,6 +234,10 @@ class PointTracker(nn.Module):
         twice ``blur_match`` by default, since streaks near the detection limit (about 5 px) flicker in and out
         of detection in real video while the blur they stand for barely changes, and every matched step
         restarts the sample memory.
+        block_limit: block-grid ratio of a frame (:func:`~models.tracking.compression.block_grid_ratio`: about 1
+        uncompressed, 1.2-2 at JPEG qualities 30-60, 3-26 below 5) above which the corrections of the levels on
+        which an 8 px codec block spans more than 2 px (levels 0 and 1, never the coarsest) are dropped
+        (:meth:`_fine_weight`); None: never.
     """
 
     def __init__(
@@ -252,6 +261,7 @@ class PointTracker(nn.Module):
         blur_match: float | None = 2.0,
         streak_score: float | None = -10.0,
         streak_match: float = 4.0,
+        block_limit: float | None = 3.0,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -287,6 +297,9 @@ class PointTracker(nn.Module):
         if not streak_match > 0:
             raise InputError(f"streak_match must be a positive variance in px^2, got {streak_match}")
         self.streak_match = streak_match
+        if block_limit is not None and not block_limit > 1:
+            raise InputError(f"block_limit must be a block-grid ratio above 1 or None, got {block_limit}")
+        self.block_limit = block_limit
         if band is None:
             band = (_FINE_BAND,) + (_COARSE_BAND,) * (levels - 1)
         fractions = _per_level(band, levels, "band", float)
@@ -441,6 +454,7 @@ class PointTracker(nn.Module):
         noise = self._noise_variance(frame)
         start = torch.where(torch.isfinite(positions), positions, torch.zeros_like(positions))  # lost: where frozen
         d = torch.zeros_like(positions)
+        fine_weight = self._fine_weight(frame)
         spectra, centres = [], []
         for level in reversed(range(self.levels)):
             centre = (start + d + 0.5) / 2**level - 0.5
@@ -453,7 +467,10 @@ class PointTracker(nn.Module):
                 psr_argmax = argmax  # the PSR judges the unweighted level-0 map
             if weighted:  # the peak of the prior-weighted map, refined on the map itself
                 argmax = interleaved_argmax(score, getattr(self, f"search_prior_{level}"))
-            d = d + 2**level * self._peak(spectrum, score, argmax, level)
+            step = 2**level * self._peak(spectrum, score, argmax, level)
+            if level < min(_BLOCK_LEVELS, self.levels - 1):
+                step = step * fine_weight
+            d = d + step
             spectra.insert(0, (zr, zi))
             centres.insert(0, centre)
         psr = interleaved_psr(score, self.psr_exclude, psr_argmax)
@@ -531,6 +548,16 @@ class PointTracker(nn.Module):
             regulariser = regulariser + self.noise_reg * noise[:, None] * getattr(self, f"noise_spectrum_{level}")
         inv = 1 / (b + regulariser)
         return torch.cat([(ar * zr - ai * zi) * inv, (ar * zi + ai * zr) * inv], -1)
+
+    def _fine_weight(self, frame: Tensor) -> Tensor | float:
+        """Weight of the corrections of the levels on which a codec block spans more than 2 px (levels 0 and 1,
+        never the coarsest): 1, or 0 in a frame ``(1, 1, H, W)`` whose 8 px compression grid is stronger than
+        ``block_limit`` (:func:`~models.tracking.compression.block_grid_ratio`). There the blocks are nearly flat
+        inside and step at their borders, and that is the structure these levels' filters match; the coarser
+        levels, on which a block is at most 2 px, give the better estimate."""
+        if self.block_limit is None or min(frame.shape[-2:]) < 16:
+            return 1.0
+        return (block_grid_ratio(frame) <= self.block_limit).to(frame.dtype)
 
     def _lost_threshold(self, psr: Tensor, lost: Tensor) -> Tensor:
         """The PSR below which a point's peak is weak in this frame: ``psr_relative`` times the geometric mean PSR

@@ -1,6 +1,7 @@
 """The runtime's point tracker: its command, run without torch, against the PyTorch tracker on the same frames
 and start points (tracks within 0.01 px, the same lost flags), through blur and motion-blur changes too, OpenCV's
-start points, a lone point, a point that an occluder hides and uncovers, frames that do not fit the bundle."""
+start points, a lone point, a point that an occluder hides and uncovers, frames compressed into flat blocks,
+frames that do not fit the bundle."""
 
 import cv2
 import numpy as np
@@ -112,6 +113,24 @@ def test_streak_matching_branches_match_pytorch(tracking_bundle) -> None:
     tracks, lost, _ = tracker.track(images, start)
     ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
                                                          torch.from_numpy(start).float())
+    np.testing.assert_array_equal(lost, ref_lost.numpy())
+    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+
+
+def test_a_blocked_frame_as_in_pytorch(tracking_bundle) -> None:
+    """Frames compressed until their 8 px blocks are nearly flat (JPEG quality 2) between clean ones: the step
+    graph drops the two finest levels' corrections where PyTorch does (checked to happen) and tracks alike."""
+    seq = synthetic_sequence(frames=4, size=(96, 128), max_motion=3.0, seed=6)
+    images = [f.round().astype(np.uint8) for f in seq.frames]
+    images[1:3] = [cv2.imdecode(cv2.imencode(".jpg", f, [cv2.IMWRITE_JPEG_QUALITY, 2])[1], cv2.IMREAD_GRAYSCALE)
+                   for f in images[1:3]]
+    images = [f.astype(np.float32) for f in images]
+    tracker = PointTracker("ccot")
+    weights = [float(tracker._fine_weight(torch.from_numpy(f)[None, None])) for f in images]
+    assert weights == [1.0, 0.0, 0.0, 1.0]
+    start = np.random.default_rng(3).uniform([10, 10], [118, 86], (40, 2))
+    tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
+    ref_tracks, ref_lost, _ = tracker.track([torch.from_numpy(f) for f in images], torch.from_numpy(start).float())
     np.testing.assert_array_equal(lost, ref_lost.numpy())
     assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
 

@@ -2,6 +2,7 @@
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 import torch
@@ -491,3 +492,36 @@ def test_search_and_blur_settings_are_checked():
     for value in (0.0, -2.0, float("nan")):
         with pytest.raises(InputError, match="blur_match"):
             PointTracker("ccot", blur_match=value)
+
+
+def _jpeg(image: np.ndarray, quality: int) -> torch.Tensor:
+    data = cv2.imencode(".jpg", image.clip(0, 255).round().astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, quality])[1]
+    return torch.from_numpy(cv2.imdecode(data, cv2.IMREAD_GRAYSCALE).astype(np.float64))
+
+
+@pytest.mark.parametrize("quality", [5, 20])
+def test_a_blocked_frame_takes_the_estimate_of_the_coarser_levels(quality):
+    """A frame compressed until its 8 px blocks are nearly flat (JPEG quality 5 on this texture: block-grid ratio
+    above 3) gets no correction from the levels on which a block spans more than 2 px, which is more precise than
+    taking theirs; at quality 20 (ratio about 1.6) the blocks still hold the scene and both settings track alike."""
+    shift = (3.4, -2.3)
+    image = textured(200, 240, 5)
+    moved = cv2.warpAffine(image, np.float64([[1, 0, shift[0]], [0, 1, shift[1]]]), (240, 200),
+                           flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    frames = [_jpeg(image, 90), _jpeg(moved, quality)]
+    grid = torch.arange(40.0, 161.0, 10.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    tracks = {limit: PointTracker("ccot", block_limit=limit).double().track(frames, points)[0][1]
+              for limit in (None, 3.0)}
+    errors = {k: (v - points - torch.tensor(shift, dtype=torch.float64)).norm(dim=-1).median().item()
+              for k, v in tracks.items()}
+    if quality == 5:
+        assert errors[3.0] < 0.8 * errors[None], errors
+    else:
+        torch.testing.assert_close(tracks[3.0], tracks[None], rtol=0, atol=0)
+
+
+def test_block_limit_is_checked():
+    for value in (1.0, 0.5, float("nan")):
+        with pytest.raises(InputError, match="block_limit"):
+            PointTracker("ccot", block_limit=value)
