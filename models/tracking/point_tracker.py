@@ -250,7 +250,7 @@ class PointTracker(nn.Module):
         reg_rel: float = 1e-2,
         newton_iterations: int | tuple[int, ...] = (2, 0, 0, 0),
         search_sigma: float | tuple[float, ...] | None = None,
-        psr_threshold: float = 1.5,
+        psr_threshold: float = 2.5,
         psr_relative: float = 0.3,
         psr_rate: float | None = 0.3,
         psr_recover: float | None = 0.7,

@@ -30,7 +30,7 @@ def test_step_and_init_graphs_match_pytorch(tracking_bundle) -> None:
         got = init(args[1].numpy(), args[2].numpy())
         for a, b in zip(got[4:], state.filters, strict=True):
             np.testing.assert_allclose(a, b.numpy(), rtol=1e-4, atol=1e-4 * float(b.abs().max()))
-    assert bundle.section("settings")["method"] == "ccot" and bundle.section("thresholds")["psr_threshold"] == 1.5
+    assert bundle.section("settings")["method"] == "ccot" and bundle.section("thresholds")["psr_threshold"] == 2.5
 
 
 def test_parity_on_the_synthetic_sequence(tracking_bundle) -> None:
