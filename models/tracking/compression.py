@@ -3,9 +3,9 @@ intra frames of block-based video codecs) leave behind.
 
 A codec that quantises each 8 x 8 block on its own makes the blocks' borders step: the mean absolute difference
 between neighbouring pixels across a block border exceeds the one inside the blocks. The ratio of the two, per
-axis, is about 1 for a frame that never went through such a codec or whose grid was lost in a resize (1.0-1.4 on
-the DAVIS frames, stored as JPEG at a high quality), 1.2-2 at JPEG qualities of 30-60, 2-4 at quality 15 and 3-26
-below quality 5, where the blocks have become nearly flat (measured on the point-tracking benchmark's frames). The
+axis, is about 1 for a frame that never went through such a codec or whose grid was lost in a resize (0.96-1.28 on
+the DAVIS frames, stored as JPEG at a high quality), 1.2-2.4 at JPEG qualities of 37-60, 1.8-4 at 14-26 and 6-26
+at quality 3, where the blocks have become nearly flat (measured on the point-tracking benchmark's frames). The
 frame's grid is assumed to start at pixel 0, as it does in a decoded image.
 """
 

@@ -235,7 +235,7 @@ class PointTracker(nn.Module):
         of detection in real video while the blur they stand for barely changes, and every matched step
         restarts the sample memory.
         block_limit: block-grid ratio of a frame (:func:`~models.tracking.compression.block_grid_ratio`: about 1
-        uncompressed, 1.2-2 at JPEG qualities 30-60, 3-26 below 5) above which the corrections of the levels on
+        uncompressed, 1.2-2.4 at JPEG qualities 37-60, 6-26 at quality 3) above which the corrections of the levels on
         which an 8 px codec block spans more than 2 px (levels 0 and 1, never the coarsest) are dropped
         (:meth:`_fine_weight`); None: never.
     """
