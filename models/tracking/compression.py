@@ -16,6 +16,8 @@ from torch import Tensor
 
 from core.errors import InputError
 
+BLOCK = 8  # px: the block of JPEG and of the intra frames of block-based video codecs
+
 
 def _axis_ratio(steps: Tensor, block: int) -> Tensor:
     """Mean of ``steps`` ``(B, N - 1)`` at the block borders (between pixels ``block k - 1`` and ``block k``) over
@@ -25,7 +27,7 @@ def _axis_ratio(steps: Tensor, block: int) -> Tensor:
     return (border.mean(-1) + 1e-6) / (inside + 1e-6)
 
 
-def block_grid_ratio(image: Tensor, block: int = 8) -> Tensor:
+def block_grid_ratio(image: Tensor, block: int = BLOCK) -> Tensor:
     """Strength of a ``block`` px compression grid in gray images.
 
     Args:
@@ -48,7 +50,7 @@ def block_grid_ratio(image: Tensor, block: int = 8) -> Tensor:
 class BlockGridRatio(torch.nn.Module):
     """Module form of :func:`block_grid_ratio`: ``(B, 1, H, W)`` -> ``(B,)``."""
 
-    def __init__(self, block: int = 8) -> None:
+    def __init__(self, block: int = BLOCK) -> None:
         super().__init__()
         self.block = block
 

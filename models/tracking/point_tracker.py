@@ -64,7 +64,7 @@ from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
-from models.tracking.compression import block_grid_ratio
+from models.tracking.compression import BLOCK, block_grid_ratio
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
 
@@ -555,7 +555,7 @@ class PointTracker(nn.Module):
         ``block_limit`` (:func:`~models.tracking.compression.block_grid_ratio`). There the blocks are nearly flat
         inside and step at their borders, and that is the structure these levels' filters match; the coarser
         levels, on which a block is at most 2 px, give the better estimate."""
-        if self.block_limit is None or min(frame.shape[-2:]) < 16:
+        if self.block_limit is None or min(frame.shape[-2:]) < 2 * BLOCK:  # too small to measure
             return 1.0
         return (block_grid_ratio(frame) <= self.block_limit).to(frame.dtype)
 
