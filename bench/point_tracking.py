@@ -11,8 +11,9 @@ defocus or motion blur, JPEG compression or darkness (:mod:`data.flow.homography
 ``homography_<condition>_<folder>_<file stem>``, 6 frames; ``--homography-cameras moving fixed`` adds the same sets
 seen by a fixed camera, as the Oxford sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs
 only those) and real videos without ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS
-folders, named ``roundtrip_<folder>``: ``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on, then
-the same frames in reverse order back to the first, so every point's truth at the last frame is its start; this
+folders, named ``roundtrip_<folder>``: ``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on,
+every ``--roundtrip-stride``-th (default 1; more: faster real motion), then the same frames in reverse order back
+to the first, so every point's truth at the last frame is its start; this
 measures the drift and the false tracks that real motion, motion blur and deformation cause over many frames, but it
 would also reward a tracker that never moves, so it complements the sets with ground truth rather than replacing
 them; ``--roundtrip-conditions`` adds sets of rows with every frame degraded as in the homography sets, at
@@ -145,18 +146,21 @@ def homography_dataset(image: str | Path, condition: str, n_points: int, seed: i
 
 
 def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing: int = 3, condition: str = "none",
-                      strength: float = 1.0, seed: int = 0, start: int = 0) -> Dataset:
+                      strength: float = 1.0, seed: int = 0, start: int = 0, stride: int = 1) -> Dataset:
     """``n_frames`` frames of a real video (a folder of images, :func:`~core.frames.read_frames`) from frame
-    ``start`` on and then the same frames back to the first (``2 n_frames - 1`` in all), every frame degraded by
-    ``condition`` at
+    ``start`` on, every ``stride``-th (2 or more: the video's own motion that many times faster per frame), and
+    then the same frames back to the first (``2 n_frames - 1`` in all), every frame degraded by ``condition`` at
     ``strength`` (:func:`data.flow.degrade`, seeded; ``motion`` in one direction drawn from the seed); the truth
     at the last frame is the start points themselves."""
-    if n_frames < 2 or start < 0:
-        raise InputError(f"a round trip needs at least 2 frames from a start >= 0, got {n_frames} from {start}")
-    frames, _ = read_frames(folder, limit=start + n_frames)  # the frames played, not the whole video
-    if len(frames) < start + n_frames:
-        raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames} from frame {start}")
-    frames = frames[start:]
+    if n_frames < 2 or start < 0 or stride < 1:
+        raise InputError(f"a round trip needs at least 2 frames from a start >= 0 with a stride >= 1, got "
+                         f"{n_frames} from {start} with stride {stride}")
+    needed = start + stride * (n_frames - 1) + 1
+    frames, _ = read_frames(folder, limit=needed)  # the frames played, not the whole video
+    if len(frames) < needed:
+        raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames} from frame {start} "
+                         f"with stride {stride}")
+    frames = frames[start::stride]
     if condition != "none":
         rng = np.random.default_rng([seed, HOMOGRAPHY_CONDITIONS.index(condition)])
         angle = rng.uniform(0, np.pi)
@@ -459,6 +463,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="frames of each round-trip video played forward (then back)")
     parser.add_argument("--roundtrip-start", type=int, default=0,
                         help="the round trips' first frame (index into each video's sorted frames)")
+    parser.add_argument("--roundtrip-stride", type=int, default=1,
+                        help="play every k-th frame of the round-trip videos (k times their motion per frame)")
     parser.add_argument("--roundtrip-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS, default=["none"],
                         metavar="CONDITION", help="degradations of the round-trip videos, each a set of rows: "
                         + ", ".join(HOMOGRAPHY_CONDITIONS))
@@ -516,7 +522,8 @@ def main(argv: list[str] | None = None) -> int:
             for folder in args.roundtrip:
                 name = "_".join(["roundtrip", *([condition] if condition != "none" else []), Path(folder).name])
                 datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing,
-                                                   condition, args.roundtrip_strength, args.seed, args.roundtrip_start)
+                                                   condition, args.roundtrip_strength, args.seed, args.roundtrip_start,
+                                                   args.roundtrip_stride)
         if args.synthetic or not (datasets or args.stress is not None):
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
         for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:

@@ -99,9 +99,9 @@ def test_homography_rows_per_image_and_condition(tmp_path, capsys):
 
 
 def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
-    """``--roundtrip DIR``: ``--roundtrip-frames`` frames (from ``start``), then back to the first; the truth at the
-    last frame is the start; too short a video, too few frames or a negative start is refused with the folder's
-    name."""
+    """``--roundtrip DIR``: ``--roundtrip-frames`` frames (from ``start``, every ``stride``-th), then back to the
+    first; the truth at the last frame is the start; too short a video, too few frames, a negative start or a
+    stride below 1 is refused with the folder's name."""
     import cv2
 
     rng = np.random.default_rng(1)
@@ -143,6 +143,13 @@ def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
     later = point_tracking.roundtrip_dataset(tmp_path, 3, 50, start=2)  # frames 2, 3, 4, 3, 2
     for frame, t in zip(later.frames, [2, 3, 4, 3, 2], strict=True):
         np.testing.assert_array_equal(frame, cv2.imread(str(tmp_path / f"{t:05d}.png"), cv2.IMREAD_GRAYSCALE))
+    faster = point_tracking.roundtrip_dataset(tmp_path, 3, 50, stride=2)  # frames 0, 2, 4, 2, 0
+    for frame, t in zip(faster.frames, [0, 2, 4, 2, 0], strict=True):
+        np.testing.assert_array_equal(frame, cv2.imread(str(tmp_path / f"{t:05d}.png"), cv2.IMREAD_GRAYSCALE))
+    with pytest.raises(InputError, match=f"{tmp_path.name}.*asks for 3 from frame 1 with stride 2"):
+        point_tracking.roundtrip_dataset(tmp_path, 3, 50, start=1, stride=2)  # frame 5 does not exist
+    with pytest.raises(InputError, match="stride >= 1"):
+        point_tracking.roundtrip_dataset(tmp_path, 3, 50, stride=0)
 
 
 def test_tracker_settings_reach_the_dcf_trackers(capsys):
