@@ -158,7 +158,7 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                         "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
                         "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match,
                         "streak_score": tracker.streak_score, "streak_match_px2": tracker.streak_match,
-                        "block_limit": tracker.block_limit},
+                        "block_limit": tracker.block_limit, "block_psr_threshold": tracker.block_psr_threshold},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
                       "search_sigmas": list(tracker.search_sigmas),
                       "good_features": {"quality": 0.01, "min_distance": 5}})

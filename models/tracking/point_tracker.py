@@ -17,7 +17,8 @@ that is strong both against the frame's tracked points and against its own histo
 (``psr_recover``): an occluder has moved on, or the flag was a false alarm.
 In a frame compressed until its 8 px codec blocks are nearly flat (a block-grid ratio above ``block_limit``,
 :func:`~models.tracking.compression.block_grid_ratio`) the two finest levels, on which a block spans more than
-2 px, match the blocks rather than the scene: their corrections are dropped and the coarser levels' estimate stands.
+2 px, match the blocks rather than the scene: their corrections are dropped and the coarser levels' estimate stands,
+and the absolute PSR floor is lowered (``block_psr_threshold``), since the blocks lower every point's level-0 PSR.
 Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position: the search
 sample shifted in the Fourier domain. Before all this, a frame whose blur differs from that of the frame the
 filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
@@ -210,10 +211,10 @@ class PointTracker(nn.Module):
         and either tracking it back to the previous frame misses by more than ``fb_threshold`` px
         (:meth:`_backward_error`) or its unweighted level-0 peak is more than ``fb_threshold`` px from the peak
         the displacement prior chose (None: the PSR test alone), or when its PSR is below ``psr_threshold``
-        (no peak at all). psr_recover: a lost point comes back when its PSR passes the frame test above and is at
-        least ``psr_recover`` times its running mean from before it was lost and it passes the forward-backward
-        test (one with no history, lost in its first step or outside the image from the start, never does);
-        None: lost is final. psr_exclude: PSR exclusion window.
+        (no peak at all; ``block_psr_threshold`` in a compressed frame, below). psr_recover: a lost point comes
+        back when its PSR passes the frame test above and is at least ``psr_recover`` times its running mean from
+        before it was lost and it passes the forward-backward test (one with no history, lost in its first step
+        or outside the image from the start, never does); None: lost is final. psr_exclude: PSR exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
         the sample spectra and the transforms shrink with it. None: 0.7 at level 0, 0.5 at the coarser levels,
@@ -238,6 +239,10 @@ class PointTracker(nn.Module):
         uncompressed, 1.2-2.4 at JPEG qualities 37-60, 6-26 at quality 3) above which the corrections of the levels on
         which an 8 px codec block spans more than 2 px (levels 0 and 1, never the coarsest) are dropped
         (:meth:`_fine_weight`); None: never.
+        block_psr_threshold: the absolute PSR floor (``psr_threshold``) in such a frame. Its flat blocks lower
+        every point's level-0 PSR (they replace the fine texture the filters learnt), while the position comes
+        from the coarser levels, so the usual floor there flags points that are still tracked; the frame test,
+        the history test and the forward-backward test stay as they are.
     """
 
     def __init__(
@@ -262,6 +267,7 @@ class PointTracker(nn.Module):
         streak_score: float | None = -10.0,
         streak_match: float = 4.0,
         block_limit: float | None = 3.0,
+        block_psr_threshold: float = 1.5,
     ) -> None:
         super().__init__()
         if method not in METHODS:
@@ -300,6 +306,9 @@ class PointTracker(nn.Module):
         if block_limit is not None and not block_limit > 1:
             raise InputError(f"block_limit must be a block-grid ratio above 1 or None, got {block_limit}")
         self.block_limit = block_limit
+        if not block_psr_threshold >= 0:
+            raise InputError(f"block_psr_threshold must be a PSR >= 0, got {block_psr_threshold}")
+        self.block_psr_threshold = block_psr_threshold
         if band is None:
             band = (_FINE_BAND,) + (_COARSE_BAND,) * (levels - 1)
         fractions = _per_level(band, levels, "band", float)
@@ -497,7 +506,8 @@ class PointTracker(nn.Module):
             ambiguous = (weak | back) & (_peak_gap(psr_argmax, argmax, score.shape[0]) > self.fb_threshold)
             misses = self._fails_backward((weak | back) & ~ambiguous, previous, start, *sample, noise)
             weak, back = weak & (ambiguous | misses), back & ~(ambiguous | misses)
-        lost = (lost | weak | ~(psr >= self.psr_threshold)) & ~back
+        floor = fine_weight * self.psr_threshold + (1 - fine_weight) * self.block_psr_threshold
+        lost = (lost | weak | ~(psr >= floor)) & ~back
         psr_mean = self._psr_mean(psr_mean, psr, lost)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
         target = torch.where(lost.unsqueeze(-1), start, moved)

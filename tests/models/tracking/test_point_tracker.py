@@ -521,7 +521,36 @@ def test_a_blocked_frame_takes_the_estimate_of_the_coarser_levels(quality):
         torch.testing.assert_close(tracks[3.0], tracks[None], rtol=0, atol=0)
 
 
+@pytest.mark.parametrize("quality", [3, 20])
+def test_a_blocked_frame_keeps_the_points_whose_peak_its_blocks_weaken(quality):
+    """In a frame blocked as above (quality 3) the absolute PSR floor is ``block_psr_threshold``: the points the
+    usual floor would flag and the lower one keeps have a PSR between the two and lie where the known shift puts
+    them (within 1.5 px), and no point is flagged that the usual floor keeps; at quality 20 (not blocked) the
+    setting changes nothing."""
+    shift = (3.4, -2.3)
+    image = textured(200, 240, 5)
+    moved = cv2.warpAffine(image, np.float64([[1, 0, shift[0]], [0, 1, shift[1]]]), (240, 200),
+                           flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    frames = [_jpeg(image, 90), _jpeg(moved, quality)]
+    grid = torch.arange(40.0, 161.0, 8.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    runs = {floor: PointTracker("ccot", block_psr_threshold=floor).double().track(frames, points)
+            for floor in (2.5, 1.5)}
+    (tracks, usual, psr), (_, lower, _) = (tuple(v[1] for v in run) for run in runs.values())
+    if quality == 20:
+        assert torch.equal(usual, lower) and not usual.all()
+        return
+    kept = usual & ~lower
+    assert kept.sum() >= 3 and not (lower & ~usual).any()
+    assert ((psr[kept] >= 1.5) & (psr[kept] < 2.5)).all()
+    errors = (runs[1.5][0][1] - points - torch.tensor(shift, dtype=torch.float64)).norm(dim=-1)
+    assert (errors[kept] < 1.5).all(), errors[kept]
+
+
 def test_block_limit_is_checked():
     for value in (1.0, 0.5, float("nan")):
         with pytest.raises(InputError, match="block_limit"):
             PointTracker("ccot", block_limit=value)
+    for value in (-0.5, float("nan")):
+        with pytest.raises(InputError, match="block_psr_threshold"):
+            PointTracker("ccot", block_psr_threshold=value)
