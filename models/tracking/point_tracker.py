@@ -18,7 +18,8 @@ that is strong both against the frame's tracked points and against its own histo
 In a frame compressed until its 8 px codec blocks are nearly flat (a block-grid ratio above ``block_limit``,
 :func:`~models.tracking.compression.block_grid_ratio`) the two finest levels, on which a block spans more than
 2 px, match the blocks rather than the scene: their corrections are dropped and the coarser levels' estimate stands,
-and the absolute PSR floor is lowered (``block_psr_threshold``), since the blocks lower every point's level-0 PSR.
+and a point is lost there only below a lower PSR floor (``block_psr_threshold``), since the blocks lower every
+point's level-0 PSR and the tests on level 0 see the blocks rather than the scene.
 Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position: the search
 sample shifted in the Fourier domain. Before all this, a frame whose blur differs from that of the frame the
 filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
@@ -211,10 +212,11 @@ class PointTracker(nn.Module):
         and either tracking it back to the previous frame misses by more than ``fb_threshold`` px
         (:meth:`_backward_error`) or its unweighted level-0 peak is more than ``fb_threshold`` px from the peak
         the displacement prior chose (None: the PSR test alone), or when its PSR is below ``psr_threshold``
-        (no peak at all; ``block_psr_threshold`` in a compressed frame, below). psr_recover: a lost point comes
-        back when its PSR passes the frame test above and is at least ``psr_recover`` times its running mean from
-        before it was lost and it passes the forward-backward test (one with no history, lost in its first step
-        or outside the image from the start, never does); None: lost is final. psr_exclude: PSR exclusion window.
+        (no peak at all; in a compressed frame only ``block_psr_threshold`` applies, below). psr_recover: a lost
+        point comes back when its PSR passes the frame test above and is at least ``psr_recover`` times its
+        running mean from before it was lost and it passes the forward-backward test (one with no history, lost in
+        its first step or outside the image from the start, never does); None: lost is final. psr_exclude: PSR
+        exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
         the sample spectra and the transforms shrink with it. None: 0.7 at level 0, 0.5 at the coarser levels,
@@ -239,10 +241,11 @@ class PointTracker(nn.Module):
         uncompressed, 1.2-2.4 at JPEG qualities 37-60, 6-26 at quality 3) above which the corrections of the levels on
         which an 8 px codec block spans more than 2 px (levels 0 and 1, never the coarsest) are dropped
         (:meth:`_fine_weight`); None: never.
-        block_psr_threshold: the absolute PSR floor (``psr_threshold``) in such a frame. Its flat blocks lower
-        every point's level-0 PSR (they replace the fine texture the filters learnt), while the position comes
-        from the coarser levels, so the usual floor there flags points that are still tracked; the frame test,
-        the history test and the forward-backward test stay as they are.
+        block_psr_threshold: the absolute PSR floor (``psr_threshold``) in such a frame, and there the only lost
+        test. Its flat blocks lower every point's level-0 PSR (they replace the fine texture the filters learnt)
+        and make the level-0 peaks, forward and backward, respond to the block grid, while the position comes
+        from the coarser levels; so the usual floor and the tests on level 0 (against the frame, the point's
+        history, the backward search and the prior's choice) there flag points that are still tracked.
     """
 
     def __init__(
@@ -494,6 +497,8 @@ class PointTracker(nn.Module):
         weak = ~lost & ~(psr >= threshold)  # of the points still tracked
         if self.psr_rate is not None:  # and weak against the point's own history (always, before it has one)
             weak = weak & ~(psr >= self.psr_relative * psr_mean)
+        # in a blocked frame level 0 shows the blocks, not the scene: only the (lower) floor flags points there
+        weak = weak & (fine_weight > 0)
         # a lost point comes back where its frozen filters find a peak as strong as the frame's tracked points'
         # and nearly as strong as its own were before (never: a point without history, psr_mean inf)
         back = torch.zeros_like(lost)

@@ -547,6 +547,28 @@ def test_a_blocked_frame_keeps_the_points_whose_peak_its_blocks_weaken(quality):
     assert (errors[kept] < 1.5).all(), errors[kept]
 
 
+@pytest.mark.parametrize("quality", [3, 20])
+def test_in_a_blocked_frame_only_the_floor_flags_points(monkeypatch, quality):
+    """With every point made weak against the frame and a forward-backward test made to fail always, every point
+    is lost in a frame that is not blocked (quality 20); in a blocked frame (quality 3) the lost points are exactly
+    those whose PSR is below ``block_psr_threshold``, whatever the tests on level 0 say."""
+    shift = (3.4, -2.3)
+    image = textured(200, 240, 5)
+    moved = cv2.warpAffine(image, np.float64([[1, 0, shift[0]], [0, 1, shift[1]]]), (240, 200),
+                           flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    frames = [_jpeg(image, 90), _jpeg(moved, quality)]
+    grid = torch.arange(40.0, 161.0, 8.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    tracker = PointTracker("ccot", block_psr_threshold=2.4).double()
+    monkeypatch.setattr(tracker, "_lost_threshold", lambda psr, lost: torch.full_like(psr, math.inf))
+    monkeypatch.setattr(tracker, "_fails_backward", lambda weak, *args: weak)
+    _, lost, psr = (v[1] for v in tracker.track(frames, points))
+    if quality == 20:
+        assert lost.all()
+    else:
+        assert 0 < lost.sum() < len(points) and torch.equal(lost, psr < 2.4)
+
+
 def test_block_limit_is_checked():
     for value in (1.0, 0.5, float("nan")):
         with pytest.raises(InputError, match="block_limit"):
