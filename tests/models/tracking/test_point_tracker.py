@@ -499,21 +499,29 @@ def _jpeg(image: np.ndarray, quality: int) -> torch.Tensor:
     return torch.from_numpy(cv2.imdecode(data, cv2.IMREAD_GRAYSCALE).astype(np.float64))
 
 
+_SHIFT = (3.4, -2.3)  # px: the motion of the compressed pairs below
+
+
+def _compressed_pair(quality: int, spacing: float) -> tuple[list[torch.Tensor], torch.Tensor]:
+    """A texture at JPEG quality 90 and the same texture shifted by ``_SHIFT`` at ``quality``, and a grid of
+    points ``(P, 2)`` ``spacing`` px apart inside both."""
+    image = textured(200, 240, 5)
+    moved = cv2.warpAffine(image, np.float64([[1, 0, _SHIFT[0]], [0, 1, _SHIFT[1]]]), (240, 200),
+                           flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+    grid = torch.arange(40.0, 161.0, spacing, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    return [_jpeg(image, 90), _jpeg(moved, quality)], points
+
+
 @pytest.mark.parametrize("quality", [5, 20])
 def test_a_blocked_frame_takes_the_estimate_of_the_coarser_levels(quality):
     """A frame compressed until its 8 px blocks are nearly flat (JPEG quality 5 on this texture: block-grid ratio
     above 3) gets no correction from the levels on which a block spans more than 2 px, which is more precise than
     taking theirs; at quality 20 (ratio about 1.6) the blocks still hold the scene and both settings track alike."""
-    shift = (3.4, -2.3)
-    image = textured(200, 240, 5)
-    moved = cv2.warpAffine(image, np.float64([[1, 0, shift[0]], [0, 1, shift[1]]]), (240, 200),
-                           flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
-    frames = [_jpeg(image, 90), _jpeg(moved, quality)]
-    grid = torch.arange(40.0, 161.0, 10.0, dtype=torch.float64)
-    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    frames, points = _compressed_pair(quality, 10.0)
     tracks = {limit: PointTracker("ccot", block_limit=limit).double().track(frames, points)[0][1]
               for limit in (None, 3.0)}
-    errors = {k: (v - points - torch.tensor(shift, dtype=torch.float64)).norm(dim=-1).median().item()
+    errors = {k: (v - points - torch.tensor(_SHIFT, dtype=torch.float64)).norm(dim=-1).median().item()
               for k, v in tracks.items()}
     if quality == 5:
         assert errors[3.0] < 0.8 * errors[None], errors
@@ -527,13 +535,7 @@ def test_a_blocked_frame_keeps_the_points_whose_peak_its_blocks_weaken(quality):
     usual floor would flag and the lower one keeps have a PSR between the two and lie where the known shift puts
     them (within 1.5 px), and no point is flagged that the usual floor keeps; at quality 20 (not blocked) the
     setting changes nothing."""
-    shift = (3.4, -2.3)
-    image = textured(200, 240, 5)
-    moved = cv2.warpAffine(image, np.float64([[1, 0, shift[0]], [0, 1, shift[1]]]), (240, 200),
-                           flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
-    frames = [_jpeg(image, 90), _jpeg(moved, quality)]
-    grid = torch.arange(40.0, 161.0, 8.0, dtype=torch.float64)
-    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    frames, points = _compressed_pair(quality, 8.0)
     runs = {floor: PointTracker("ccot", block_psr_threshold=floor).double().track(frames, points)
             for floor in (2.5, 1.5)}
     (tracks, usual, psr), (_, lower, _) = (tuple(v[1] for v in run) for run in runs.values())
@@ -543,7 +545,7 @@ def test_a_blocked_frame_keeps_the_points_whose_peak_its_blocks_weaken(quality):
     kept = usual & ~lower
     assert kept.sum() >= 3 and not (lower & ~usual).any()
     assert ((psr[kept] >= 1.5) & (psr[kept] < 2.5)).all()
-    errors = (runs[1.5][0][1] - points - torch.tensor(shift, dtype=torch.float64)).norm(dim=-1)
+    errors = (runs[1.5][0][1] - points - torch.tensor(_SHIFT, dtype=torch.float64)).norm(dim=-1)
     assert (errors[kept] < 1.5).all(), errors[kept]
 
 
@@ -552,13 +554,7 @@ def test_in_a_blocked_frame_only_the_floor_flags_points(monkeypatch, quality):
     """With every point made weak against the frame and a forward-backward test made to fail always, every point
     is lost in a frame that is not blocked (quality 20); in a blocked frame (quality 3) the lost points are exactly
     those whose PSR is below ``block_psr_threshold``, whatever the tests on level 0 say."""
-    shift = (3.4, -2.3)
-    image = textured(200, 240, 5)
-    moved = cv2.warpAffine(image, np.float64([[1, 0, shift[0]], [0, 1, shift[1]]]), (240, 200),
-                           flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
-    frames = [_jpeg(image, 90), _jpeg(moved, quality)]
-    grid = torch.arange(40.0, 161.0, 8.0, dtype=torch.float64)
-    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    frames, points = _compressed_pair(quality, 8.0)
     tracker = PointTracker("ccot", block_psr_threshold=2.4).double()
     monkeypatch.setattr(tracker, "_lost_threshold", lambda psr, lost: torch.full_like(psr, math.inf))
     monkeypatch.setattr(tracker, "_fails_backward", lambda weak, *args: weak)
