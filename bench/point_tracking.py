@@ -22,7 +22,11 @@ frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (no
 ``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
 ``point_frames_per_s``, ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per
 second) and, where an occluder hid some points (``stress_occlusion``), ``occluded_lost_frac``: the fraction of those
-flagged lost. Lost points keep their last position for the EPE statistics and never count as inliers.
+flagged lost. Lost points keep their last position for the EPE statistics and never count as inliers. With KLT in
+the run, ``summary`` (JSON; the table's last lines) counts per group of rows (``pairs``: the ``--sintel`` folders,
+``synthetic``, ``stress``, ``homography[_fixed]_<condition>``, ``roundtrip[_<condition>]``) and over ``all`` of
+them the rows where each other method has at least KLT's inlier fraction and at most its mean inlier EPE (a KLT
+row without inliers counts as beaten on precision), names the rows it loses and gives every method's means.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
@@ -46,6 +50,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import tempfile
 import time
@@ -304,6 +309,60 @@ def evaluate(datasets: dict[str, Dataset], methods=METHODS, device: str = "cpu",
     return out
 
 
+def beats_klt(row: dict, klt: dict) -> tuple[bool, bool]:
+    """Whether a method's row has (inliers) at least KLT's inlier fraction and (precision) at most its mean
+    inlier EPE; a KLT row without inliers (EPE NaN) is beaten on precision by any row, a row without inliers beats
+    no KLT row that has some."""
+    inliers = row["inlier_frac"] >= klt["inlier_frac"]
+    precision = math.isnan(klt["inlier_epe_mean"]) or row["inlier_epe_mean"] <= klt["inlier_epe_mean"]
+    return inliers, precision
+
+
+def summary(result: dict, groups: dict[str, str]) -> dict:
+    """Per group of rows (``groups``: dataset name -> group) and over ``all``: the number of rows; per method the
+    mean inlier fraction, mean inlier EPE (over the rows with inliers; NaN if none) and mean lost fraction; with
+    KLT in the run, per other method the rows where it beats KLT in both numbers, in inliers and in precision
+    (:func:`beats_klt`) and the names of the rows it loses."""
+    out = {}
+    for group in [*dict.fromkeys(groups[name] for name in result), "all"]:
+        names = [name for name in result if group in ("all", groups[name])]
+        rows = [result[name]["methods"] for name in names]
+        methods = {}
+        for method in rows[0]:
+            epes = [r[method]["inlier_epe_mean"] for r in rows if not math.isnan(r[method]["inlier_epe_mean"])]
+            stats = {
+                "inlier_frac_mean": float(np.mean([r[method]["inlier_frac"] for r in rows])),
+                "inlier_epe_mean": float(np.mean(epes)) if epes else float("nan"),
+                "lost_frac_mean": float(np.mean([r[method]["lost_frac"] for r in rows])),
+            }
+            if method != "klt" and "klt" in rows[0]:
+                verdicts = [beats_klt(r[method], r["klt"]) for r in rows]
+                stats.update(
+                    rows_beating_klt=sum(a and b for a, b in verdicts),
+                    rows_beating_klt_inliers=sum(a for a, _ in verdicts),
+                    rows_beating_klt_precision=sum(b for _, b in verdicts),
+                    rows_losing=[name for name, v in zip(names, verdicts, strict=True) if not all(v)],
+                )
+            methods[method] = stats
+        out[group] = {"rows": len(names), "methods": methods}
+    return out
+
+
+def summary_lines(summaries: dict) -> list[str]:
+    """The readable form of :func:`summary`: one line per group and method beside KLT."""
+    lines = []
+    for group, entry in summaries.items():
+        means = ", ".join(f"{m} {s['inlier_frac_mean']:.3f} / {s['inlier_epe_mean']:.3f} px"
+                          for m, s in entry["methods"].items())
+        lines.append(f"summary {group} ({entry['rows']} rows), mean inliers / inlier EPE: {means}")
+        for method, s in entry["methods"].items():
+            if "rows_beating_klt" in s:
+                lines.append(f"  {method} >= klt in both on {s['rows_beating_klt']} of {entry['rows']} rows "
+                             f"(inliers {s['rows_beating_klt_inliers']}, precision "
+                             f"{s['rows_beating_klt_precision']}); loses: {', '.join(s['rows_losing']) or '-'}")
+    return lines
+
+
 def table(result: dict) -> str:
     """Readable table of a result (without per-point EPEs)."""
     lines = []
@@ -506,10 +565,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--repeats must be at least 1")
     settings = parse_tracker(args.tracker)
     with cpu_threads(args.threads):
-        datasets = {}
+        datasets, groups = {}, {}
         for folder in args.sintel:
             path = Path(folder)
-            datasets[f"{path.parent.name}_{path.name}"] = sintel_dataset(path, args.points, args.spacing)
+            name = f"{path.parent.name}_{path.name}"
+            datasets[name], groups[name] = sintel_dataset(path, args.points, args.spacing), "pairs"
         for camera in args.homography_cameras if args.homography else []:
             for condition in args.homography_conditions:
                 for image in args.homography:
@@ -518,18 +578,22 @@ def main(argv: list[str] | None = None) -> int:
                                      path.parent.name, path.stem])
                     datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing,
                                                         moving=camera == "moving")
+                    groups[name] = "_".join(["homography", *(["fixed"] if camera == "fixed" else []), condition])
         for condition in args.roundtrip_conditions if args.roundtrip else []:
             for folder in args.roundtrip:
                 name = "_".join(["roundtrip", *([condition] if condition != "none" else []), Path(folder).name])
                 datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing,
                                                    condition, args.roundtrip_strength, args.seed, args.roundtrip_start,
                                                    args.roundtrip_stride)
+                groups[name] = "_".join(["roundtrip", *([condition] if condition != "none" else [])])
         if args.synthetic or not (datasets or args.stress is not None):
             datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
+            groups["synthetic"] = "synthetic"
         for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:
             datasets[f"stress_{condition}"] = stress_dataset(
                 condition, args.frames, args.points, args.seed, args.spacing
             )
+            groups[f"stress_{condition}"] = "stress"
         methods = [*args.methods, *([COMPILED] if args.compile else [])]
         result = evaluate(datasets, methods, args.device, args.repeats, args.bundle, settings)
     if args.plot:
@@ -539,10 +603,11 @@ def main(argv: list[str] | None = None) -> int:
             del m["epe"], m["tracked"]
     if args.json:
         clock_name = "process_cpu_time" if args.device == "cpu" else "wall"
-        print(json.dumps({"datasets": result, "device": args.device, "threads": args.threads, "clock": clock_name,
-                          "timing": f"best of {args.repeats} runs", "tracker": settings}))
+        print(json.dumps({"datasets": result, "summary": summary(result, groups), "device": args.device,
+                          "threads": args.threads, "clock": clock_name, "timing": f"best of {args.repeats} runs",
+                          "tracker": settings}))
     else:
-        print(table(result))
+        print("\n".join([table(result), *summary_lines(summary(result, groups))]))
     return 0
 
 

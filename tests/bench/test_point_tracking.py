@@ -24,6 +24,8 @@ def test_json_schema_and_plot(tmp_path, capsys):
         assert 0 <= m["precision_at"]["1"] <= m["precision_at"]["3"] == m["inlier_frac"] <= 1
         assert m["speed_vs_klt"] == m["point_frames_per_s"] / methods["klt"]["point_frames_per_s"]
     assert png.stat().st_size > 10_000
+    assert result["summary"]["synthetic"]["rows"] == 1 and list(result["summary"]) == ["synthetic", "all"]
+    assert result["summary"]["all"]["methods"]["ccot"]["rows_beating_klt"] in (0, 1)
 
 
 def test_metrics_against_hand_computed_values():
@@ -40,6 +42,40 @@ def test_metrics_against_hand_computed_values():
     assert m["inlier_frac"] == 2 / 3 and m["inlier_epe_mean"] == 1.5
     assert m["precision_at"] == {"1": 1 / 3, "2": 1 / 3, "3": 2 / 3}
     assert m["point_frames_per_s"] == 4 * 2 / 2.0
+
+
+def test_summary_counts_the_rows_beating_klt():
+    """Hand-made rows: a win, a loss on inliers, a loss on precision, a KLT row without inliers (won on precision
+    by any row) and a row without inliers of its own (loses to a KLT with inliers); counts, names and means per
+    group and over all, against values worked out by hand."""
+    nan = float("nan")
+
+    def row(ccot, klt):
+        return {"methods": {name: {"inlier_frac": f, "inlier_epe_mean": e, "lost_frac": lost}
+                            for name, (f, e, lost) in (("ccot", ccot), ("klt", klt))}}
+
+    result = {
+        "a": row((0.9, 0.5, 0.1), (0.8, 0.6, 0.0)),  # won
+        "b": row((0.7, 0.5, 0.3), (0.8, 0.6, 0.0)),  # fewer inliers
+        "c": row((0.9, 0.7, 0.1), (0.8, 0.6, 0.0)),  # less precise
+        "d": row((0.5, 0.9, 0.5), (0.0, nan, 1.0)),  # KLT without inliers: won
+        "e": row((0.0, nan, 1.0), (0.2, 1.0, 0.4)),  # no inliers of its own: lost in both
+    }
+    groups = {"a": "g1", "b": "g1", "c": "g2", "d": "g2", "e": "g2"}
+    summary = point_tracking.summary(result, groups)
+    assert list(summary) == ["g1", "g2", "all"]
+    expected = {"g1": (2, 1, 1, 2, ["b"]), "g2": (3, 1, 2, 1, ["c", "e"]), "all": (5, 2, 3, 3, ["b", "c", "e"])}
+    for group, (rows, both, inliers, precision, losing) in expected.items():
+        ccot = summary[group]["methods"]["ccot"]
+        assert summary[group]["rows"] == rows and ccot["rows_losing"] == losing
+        assert (ccot["rows_beating_klt"], ccot["rows_beating_klt_inliers"], ccot["rows_beating_klt_precision"]) == (
+            both, inliers, precision)
+    ccot, klt = summary["all"]["methods"]["ccot"], summary["all"]["methods"]["klt"]
+    assert ccot["inlier_frac_mean"] == pytest.approx(3.0 / 5) and klt["inlier_frac_mean"] == pytest.approx(2.6 / 5)
+    assert ccot["inlier_epe_mean"] == pytest.approx(2.6 / 4) and klt["inlier_epe_mean"] == pytest.approx(2.8 / 4)
+    assert ccot["lost_frac_mean"] == pytest.approx(2.0 / 5) and "rows_beating_klt" not in klt
+    lines = point_tracking.summary_lines(summary)
+    assert "ccot >= klt in both on 2 of 5 rows (inliers 3, precision 3); loses: b, c, e" in lines[-1]
 
 
 def test_repeats_must_be_positive(capsys):
