@@ -558,44 +558,53 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[str, str]]:
+    """The datasets the arguments ask for, by name, and the group of each (see :func:`summary`)."""
+    datasets, groups = {}, {}
+    for folder in args.sintel:
+        path = Path(folder)
+        name = f"{path.parent.name}_{path.name}"
+        datasets[name], groups[name] = sintel_dataset(path, args.points, args.spacing), "pairs"
+    for camera in args.homography_cameras if args.homography else []:
+        for condition in args.homography_conditions:
+            group = "_".join(["homography", *(["fixed"] if camera == "fixed" else []), condition])
+            for image in args.homography:
+                path = Path(image)
+                name = f"{group}_{path.parent.name}_{path.stem}"
+                datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing,
+                                                    moving=camera == "moving")
+                groups[name] = group
+    for condition in args.roundtrip_conditions if args.roundtrip else []:
+        group = "_".join(["roundtrip", *([condition] if condition != "none" else [])])
+        for folder in args.roundtrip:
+            name = f"{group}_{Path(folder).name}"
+            datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing, condition,
+                                               args.roundtrip_strength, args.seed, args.roundtrip_start,
+                                               args.roundtrip_stride)
+            groups[name] = group
+    if args.synthetic or not (datasets or args.stress is not None):
+        datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
+        groups["synthetic"] = "synthetic"
+    for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:
+        datasets[f"stress_{condition}"] = stress_dataset(condition, args.frames, args.points, args.seed, args.spacing)
+        groups[f"stress_{condition}"] = "stress"
+    return datasets, groups
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.repeats < 1:
         parser.error("--repeats must be at least 1")
-    settings = parse_tracker(args.tracker)
-    with cpu_threads(args.threads):
-        datasets, groups = {}, {}
-        for folder in args.sintel:
-            path = Path(folder)
-            name = f"{path.parent.name}_{path.name}"
-            datasets[name], groups[name] = sintel_dataset(path, args.points, args.spacing), "pairs"
-        for camera in args.homography_cameras if args.homography else []:
-            for condition in args.homography_conditions:
-                for image in args.homography:
-                    path = Path(image)
-                    name = "_".join(["homography", *(["fixed"] if camera == "fixed" else []), condition,
-                                     path.parent.name, path.stem])
-                    datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing,
-                                                        moving=camera == "moving")
-                    groups[name] = "_".join(["homography", *(["fixed"] if camera == "fixed" else []), condition])
-        for condition in args.roundtrip_conditions if args.roundtrip else []:
-            for folder in args.roundtrip:
-                name = "_".join(["roundtrip", *([condition] if condition != "none" else []), Path(folder).name])
-                datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing,
-                                                   condition, args.roundtrip_strength, args.seed, args.roundtrip_start,
-                                                   args.roundtrip_stride)
-                groups[name] = "_".join(["roundtrip", *([condition] if condition != "none" else [])])
-        if args.synthetic or not (datasets or args.stress is not None):
-            datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
-            groups["synthetic"] = "synthetic"
-        for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:
-            datasets[f"stress_{condition}"] = stress_dataset(
-                condition, args.frames, args.points, args.seed, args.spacing
-            )
-            groups[f"stress_{condition}"] = "stress"
-        methods = [*args.methods, *([COMPILED] if args.compile else [])]
-        result = evaluate(datasets, methods, args.device, args.repeats, args.bundle, settings)
+    try:
+        settings = parse_tracker(args.tracker)
+        with cpu_threads(args.threads):
+            datasets, groups = build_datasets(args)
+            methods = [*args.methods, *([COMPILED] if args.compile else [])]
+            result = evaluate(datasets, methods, args.device, args.repeats, args.bundle, settings)
+    except InputError as err:
+        sys.stderr.write(f"bench/point_tracking.py: error: {err}\n")
+        return 2
     if args.plot:
         plot(result, args.plot)
     for ds in result.values():
