@@ -12,21 +12,21 @@ defocus or motion blur, JPEG compression or darkness (:mod:`data.flow.homography
 seen by a fixed camera, as the Oxford sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs
 only those) and real videos without ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS
 folders, named ``roundtrip_<folder>``: ``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on,
-every ``--roundtrip-stride``-th (default 1; more: faster real motion), then the same frames in reverse order back
-to the first, so every point's truth at the last frame is its start; this
-measures the drift and the false tracks that real motion, motion blur and deformation cause over many frames, but it
-would also reward a tracker that never moves, so it complements the sets with ground truth rather than replacing
-them; ``--roundtrip-conditions`` adds sets of rows with every frame degraded as in the homography sets, at
-``--roundtrip-strength`` (1: as their last frame), named ``roundtrip_<condition>_<folder>``). Metrics at the last
-frame, per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px),
-``inlier_epe_mean``, ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``,
-``point_frames_per_s``, ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per
-second) and, where an occluder hid some points (``stress_occlusion``), ``occluded_lost_frac``: the fraction of those
-flagged lost. Lost points keep their last position for the EPE statistics and never count as inliers. With KLT in
-the run, ``summary`` (JSON; the table's last lines) counts per group of rows (``pairs``: the ``--sintel`` folders,
-``synthetic``, ``stress``, ``homography[_fixed]_<condition>``, ``roundtrip[_<condition>]``) and over ``all`` of
-them the rows where each other method has at least KLT's inlier fraction and at most its mean inlier EPE (a KLT
-row without inliers counts as beaten on precision), names the rows it loses and gives every method's means.
+every ``--roundtrip-stride``-th (default 1; more: faster real motion), then the same frames in reverse order back to
+the first, so every point's truth at the last frame is its start; this measures the drift and the false tracks that
+real motion, motion blur and deformation cause over many frames, but it would also reward a tracker that never
+moves, so it complements the sets with ground truth rather than replacing them; ``--roundtrip-conditions`` adds sets
+of rows with every frame degraded as in the homography sets, at ``--roundtrip-strength`` (1: as their last frame),
+named ``roundtrip_<condition>_<folder>``). Metrics at the last frame, per method and dataset: ``epe_median``,
+``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at`` (fraction not lost
+with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_s``, with KLT in the run
+``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder hid some points
+(``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep their last
+position for the EPE statistics and never count as inliers. With KLT in the run, ``summary`` (JSON; the table's last
+lines) counts per group of rows (``pairs``: the ``--sintel`` folders, ``synthetic``, ``stress``,
+``homography[_fixed]_<condition>``, ``roundtrip[_<condition>]``) and over ``all`` of them the rows where each other
+method has at least KLT's inlier fraction and at most its mean inlier EPE (a KLT row without inliers counts as
+beaten on precision), names the rows it loses and gives every method's means.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
