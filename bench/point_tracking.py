@@ -3,7 +3,9 @@ OpenCV's pyramidal Lucas-Kanade (KLT) from the same good-features-to-track start
 
 Datasets: folders laid out like ``../shared/data/sintel/alley_1/clean`` (frames plus ``gt/``: Sintel, and the
 Middlebury pairs in ``../shared/data/middlebury/<Seq>``; from the first ground-truth flow on, chained over
-consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder>``), a seeded synthetic sequence
+consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder>``; ``--sintel-conditions`` adds
+the same folders under the photometric stress conditions below, dark, low contrast, illumination change or JPEG,
+named ``<parent>_<folder>_<condition>``), a seeded synthetic sequence
 with chained ground truth (``--synthetic``) and the synthetic stress conditions of :mod:`data.flow.stress`
 (``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion blur, fast motion,
 illumination change, JPEG, a long run) and real photographs seen through chains of small homographies under growing
@@ -23,7 +25,7 @@ with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_
 ``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder hid some points
 (``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep their last
 position for the EPE statistics and never count as inliers. With KLT in the run, ``summary`` (JSON; the table's last
-lines) counts per group of rows (``pairs``: the ``--sintel`` folders, ``synthetic``, ``stress``,
+lines) counts per group of rows (``pairs``: the ``--sintel`` folders, ``pairs_<condition>``, ``synthetic``, ``stress``,
 ``homography[_fixed]_<condition>``, ``roundtrip[_<condition>]``) and over ``all`` of them the rows where each other
 method has at least KLT's inlier fraction and at most its mean inlier EPE (a KLT row without inliers counts as
 beaten on precision), names the rows it loses and gives every method's means.
@@ -66,10 +68,12 @@ from core.settings import parse_tracker
 from core.threads import cpu_threads
 from data.flow import (
     HOMOGRAPHY_CONDITIONS,
+    PHOTOMETRIC_CONDITIONS,
     STRESS_CONDITIONS,
     degrade,
     homography_sequence,
     read_sintel_sequence,
+    stress_frames,
     stress_sequence,
     synthetic_sequence,
     tracks_from_flow,
@@ -107,12 +111,17 @@ def detect(frame: np.ndarray, n: int, spacing: int = 3) -> np.ndarray:
     )
 
 
-def sintel_dataset(folder: str | Path, n_points: int, spacing: int = 3) -> Dataset:
+def sintel_dataset(folder: str | Path, n_points: int, spacing: int = 3, condition: str | None = None,
+                   seed: int = 0) -> Dataset:
     """Sintel folder from its first ground-truth flow on, over every consecutive ground-truth flow (one pair
-    in ``../shared/data``), ground truth chained from flow with occluded and divergent points removed."""
+    in ``../shared/data``), ground truth chained from flow with occluded and divergent points removed;
+    ``condition``: the frames under that photometric stress condition (:func:`data.flow.stress_frames`, seeded),
+    the start points detected in the degraded first frame."""
     pairs = read_sintel_sequence(folder)
-    frames = [pairs[0].frame0] + [p.frame1 for p in pairs]
-    frames = np.stack(frames).round().clip(0, 255).astype(np.uint8)
+    frames = np.stack([pairs[0].frame0] + [p.frame1 for p in pairs])
+    if condition is not None:
+        frames = stress_frames(frames, condition, seed)
+    frames = frames.round().clip(0, 255).astype(np.uint8)
     points = detect(frames[0], n_points, spacing)
     tracks, valid = tracks_from_flow(points, [p.flow for p in pairs], [p.bad for p in pairs])
     return Dataset(frames, points, tracks[-1], valid[-1])
@@ -505,6 +514,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--sintel", nargs="+", action="extend", default=[], metavar="DIR",
                         help="Sintel folders (frames plus gt/); repeat or list several")
+    parser.add_argument("--sintel-conditions", nargs="+", choices=PHOTOMETRIC_CONDITIONS, default=[],
+                        metavar="CONDITION", help="add the --sintel folders under these photometric stress "
+                        "conditions, each a set of rows: " + ", ".join(PHOTOMETRIC_CONDITIONS))
     parser.add_argument("--synthetic", action="store_true", help="add the synthetic sequence")
     parser.add_argument("--stress", nargs="*", choices=STRESS_CONDITIONS, metavar="CONDITION",
                         help="add synthetic stress conditions (all without names): " + ", ".join(STRESS_CONDITIONS))
@@ -565,6 +577,9 @@ def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[s
         path = Path(folder)
         name = f"{path.parent.name}_{path.name}"
         datasets[name], groups[name] = sintel_dataset(path, args.points, args.spacing), "pairs"
+        for condition in args.sintel_conditions:
+            datasets[f"{name}_{condition}"] = sintel_dataset(path, args.points, args.spacing, condition, args.seed)
+            groups[f"{name}_{condition}"] = f"pairs_{condition}"
     for camera in args.homography_cameras if args.homography else []:
         for condition in args.homography_conditions:
             group = "_".join(["homography", *(["fixed"] if camera == "fixed" else []), condition])

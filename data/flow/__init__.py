@@ -7,12 +7,13 @@ from data.flow.flo import read_flo, write_flo
 from data.flow.ground_truth import divergent_flow_mask, sample_bilinear, tracks_from_flow
 from data.flow.homography import HOMOGRAPHY_CONDITIONS, HomographySequence, degrade, homography_sequence
 from data.flow.sintel import SintelPair, read_sintel_pair, read_sintel_sequence
-from data.flow.stress import STRESS_CONDITIONS, stress_sequence
+from data.flow.stress import PHOTOMETRIC_CONDITIONS, STRESS_CONDITIONS, stress_frames, stress_sequence
 from data.flow.synthetic import SyntheticSequence, synthetic_sequence
 
 __all__ = [
     "HOMOGRAPHY_CONDITIONS",
     "HomographySequence",
+    "PHOTOMETRIC_CONDITIONS",
     "STRESS_CONDITIONS",
     "SintelPair",
     "SyntheticSequence",
@@ -23,6 +24,7 @@ __all__ = [
     "read_sintel_pair",
     "read_sintel_sequence",
     "sample_bilinear",
+    "stress_frames",
     "stress_sequence",
     "synthetic_sequence",
     "tracks_from_flow",

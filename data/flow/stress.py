@@ -96,6 +96,22 @@ def _occluders(seq: SyntheticSequence, rng: np.random.Generator, count: int = 6)
 
 
 _POST = {"dark": _dark, "low_contrast": _low_contrast, "illumination": _illumination, "jpeg": _jpeg}
+PHOTOMETRIC_CONDITIONS = tuple(_POST)  # the conditions that change the frames alone, not the motion
+
+
+def stress_frames(frames: np.ndarray, condition: str, seed: int = 0) -> np.ndarray:
+    """Frames ``(T, H, W)`` (gray levels in [0, 255], e.g. a real sequence's) under one of the photometric stress
+    conditions (:data:`PHOTOMETRIC_CONDITIONS`: dark, low_contrast, illumination, jpeg) exactly as the stress
+    sequences get it; float32 in [0, 255], seeded (the same frames, condition and seed give the same result)."""
+    if condition not in PHOTOMETRIC_CONDITIONS:
+        raise InputError(
+            f"unknown photometric stress condition {condition!r}; choose one of {', '.join(PHOTOMETRIC_CONDITIONS)}"
+        )
+    frames = np.asarray(frames)
+    if frames.ndim != 3 or 0 in frames.shape:
+        raise InputError(f"stress frames must have shape (T, H, W) with T, H, W > 0, got {frames.shape}")
+    rng = np.random.default_rng([seed, STRESS_CONDITIONS.index(condition)])
+    return np.clip(_POST[condition](frames.astype(np.float64), rng), 0, 255).astype(np.float32)
 
 
 def stress_sequence(
@@ -108,9 +124,8 @@ def stress_sequence(
         raise InputError(f"unknown stress condition {condition!r}; choose one of {', '.join(STRESS_CONDITIONS)}")
     render = {"frames": frames, "size": size, "seed": seed, **_BASE, **_RENDER[condition]}
     seq = synthetic_sequence(**render)
-    rng = np.random.default_rng([seed, STRESS_CONDITIONS.index(condition)])
-    if condition in _POST:
-        seq.frames = np.clip(_POST[condition](seq.frames.astype(np.float64), rng), 0, 255).astype(np.float32)
+    if condition in PHOTOMETRIC_CONDITIONS:
+        seq.frames = stress_frames(seq.frames, condition, seed)
     if condition == "occlusion":
-        _occluders(seq, rng)
+        _occluders(seq, np.random.default_rng([seed, STRESS_CONDITIONS.index(condition)]))
     return seq

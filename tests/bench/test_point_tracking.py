@@ -210,3 +210,35 @@ def test_runtime_tracker_is_a_method(tracking_bundle, capsys):
     assert methods["ccot_ort"]["speed_vs_klt"] > 0
     for key in ("epe_median", "inlier_frac", "lost_frac"):
         assert methods["ccot_ort"][key] == pytest.approx(methods["ccot"][key], abs=1e-3)
+
+
+def test_sintel_conditions_add_degraded_rows_with_the_same_truth(tmp_path, capsys):
+    """``--sintel DIR --sintel-conditions dark jpeg``: the plain row plus one row per condition, the frames those
+    of :func:`data.flow.stress_frames`, the ground truth the flow's (a pure 2 px shift, so every evaluated point's
+    truth is its start plus (2, 0))."""
+    import cv2
+
+    from data.flow import stress_frames, write_flo
+
+    folder = tmp_path / "scene" / "clean"
+    (folder / "gt").mkdir(parents=True)
+    rng = np.random.default_rng(3)
+    texture = cv2.GaussianBlur(rng.normal(128, 40, (100, 140)), (0, 0), 1.5).clip(0, 255)
+    frames = [texture[:, 10:-10], np.roll(texture, 2, axis=1)[:, 10:-10]]  # content moves 2 px right
+    for t, frame in enumerate(frames, 1):
+        cv2.imwrite(str(folder / f"frame_{t:04d}.png"), frame.astype(np.uint8))
+    flow = np.zeros((100, 120, 2), np.float32)
+    flow[..., 0] = 2
+    write_flo(folder / "gt" / "frame_0001.flo", flow)
+    dark = point_tracking.sintel_dataset(folder, 60, condition="dark", seed=5)
+    plain = np.stack([cv2.imread(str(folder / f"frame_{t:04d}.png"), cv2.IMREAD_GRAYSCALE) for t in (1, 2)])
+    np.testing.assert_array_equal(dark.frames, stress_frames(plain, "dark", 5).round().clip(0, 255).astype(np.uint8))
+    np.testing.assert_allclose(dark.truth[dark.valid], dark.points[dark.valid] + [2, 0])
+    argv = ["--sintel", str(folder), "--sintel-conditions", "dark", "jpeg", "--points", "40", "--methods", "ccot",
+            "klt", "--repeats", "1", "--json"]
+    assert point_tracking.main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["datasets"]) == {"scene_clean", "scene_clean_dark", "scene_clean_jpeg"}
+    assert {"pairs", "pairs_dark", "pairs_jpeg"} <= set(out["summary"])
+    with pytest.raises(SystemExit):  # a condition that changes the motion is not a photometric one
+        point_tracking.build_parser().parse_args(["--sintel", str(folder), "--sintel-conditions", "fast_motion"])

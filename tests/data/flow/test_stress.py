@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from data.flow import STRESS_CONDITIONS, stress_sequence, synthetic_sequence
+from data.flow import STRESS_CONDITIONS, stress_frames, stress_sequence, synthetic_sequence
 from tests.data.flow.test_synthetic import photometric_errors
 
 SIZE = (96, 128)
@@ -67,3 +67,25 @@ def test_unknown_condition_and_bad_exposure():
         stress_sequence("fog")
     with pytest.raises(InputError, match="exposure"):
         synthetic_sequence(frames=2, exposure=1.5)
+
+
+def test_stress_frames_degrade_real_frames_as_the_stress_sequences():
+    """``stress_frames`` gives a sequence's frames exactly the stress sequence's degradation; on a flat gray frame
+    the dark condition has the closed-form mean ``0.15 s`` and variance ``0.6 (0.15 s) + 1.5^2``."""
+    for condition, render in (("low_contrast", {}), ("illumination", {"brightness": 0.0}), ("jpeg", {})):
+        base = synthetic_sequence(frames=3, size=SIZE, seed=4, max_motion=8.0, **render)
+        np.testing.assert_array_equal(stress_frames(base.frames, condition, seed=4),
+                                      stress_sequence(condition, frames=3, size=SIZE, seed=4).frames)
+    flat = np.full((2, 200, 200), 100.0)
+    dark = stress_frames(flat, "dark", seed=1)
+    assert dark.dtype == np.float32 and dark.shape == flat.shape
+    assert abs(dark.mean() - 15.0) < 0.1 and abs(dark.var() - (0.6 * 15 + 1.5**2)) < 0.3
+    np.testing.assert_array_equal(dark, stress_frames(flat, "dark", seed=1))  # seeded
+    assert not np.array_equal(dark, stress_frames(flat, "dark", seed=2))
+
+
+def test_stress_frames_refuse_motion_conditions_and_bad_shapes():
+    with pytest.raises(InputError, match="photometric stress condition 'fast_motion'"):
+        stress_frames(np.zeros((2, 8, 8)), "fast_motion")
+    with pytest.raises(InputError, match=r"\(T, H, W\).*\(8, 8\)"):
+        stress_frames(np.zeros((8, 8)), "dark")
