@@ -5,30 +5,30 @@ Datasets: folders laid out like ``../shared/data/sintel/alley_1/clean`` (frames 
 Middlebury pairs in ``../shared/data/middlebury/<Seq>``; from the first ground-truth flow on, chained over
 consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder>``; ``--sintel-conditions`` adds
 the same folders under the photometric stress conditions below, dark, low contrast, illumination change or JPEG,
-named ``<parent>_<folder>_<condition>``), a seeded synthetic sequence
-with chained ground truth (``--synthetic``) and the synthetic stress conditions of :mod:`data.flow.stress`
-(``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion blur, fast motion,
-illumination change, JPEG, a long run) and real photographs seen through chains of small homographies under growing
-defocus or motion blur, JPEG compression or darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named
-``homography_<condition>_<folder>_<file stem>``, 6 frames; ``--homography-cameras moving fixed`` adds the same sets
-seen by a fixed camera, as the Oxford sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs
-only those) and real videos without ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS
-folders, named ``roundtrip_<folder>``: ``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on,
-every ``--roundtrip-stride``-th (default 1; more: faster real motion), then the same frames in reverse order back to
-the first, so every point's truth at the last frame is its start; this measures the drift and the false tracks that
-real motion, motion blur and deformation cause over many frames, but it would also reward a tracker that never
-moves, so it complements the sets with ground truth rather than replacing them; ``--roundtrip-conditions`` adds sets
-of rows with every frame degraded as in the homography sets, at ``--roundtrip-strength`` (1: as their last frame),
-named ``roundtrip_<condition>_<folder>``). Metrics at the last frame, per method and dataset: ``epe_median``,
-``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``, ``precision_at`` (fraction not lost
-with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``, ``first_call_s``, with KLT in the run
-``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder hid some points
-(``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep their last
-position for the EPE statistics and never count as inliers. With KLT in the run, ``summary`` (JSON; the table's last
-lines) counts per group of rows (``pairs``: the ``--sintel`` folders, ``pairs_<condition>``, ``synthetic``, ``stress``,
-``homography[_fixed]_<condition>``, ``roundtrip[_<condition>]``) and over ``all`` of them the rows where each other
-method has at least KLT's inlier fraction and at most its mean inlier EPE (a KLT row without inliers counts as
-beaten on precision), names the rows it loses and gives every method's means.
+named ``<parent>_<folder>_<condition>``), a seeded synthetic sequence with chained ground truth (``--synthetic``)
+and the synthetic stress conditions of :mod:`data.flow.stress` (``--stress [CONDITION ...]``, named
+``stress_<condition>``: dark, low contrast, motion blur, fast motion, illumination change, JPEG, a long run) and
+real photographs seen through chains of small homographies under growing defocus or motion blur, JPEG compression or
+darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file
+stem>``, 6 frames; ``--homography-cameras moving fixed`` adds the same sets seen by a fixed camera, as the Oxford
+sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs only those) and real videos without
+ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named ``roundtrip_<folder>``:
+``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on, every ``--roundtrip-stride``-th (default 1;
+more: faster real motion), then the same frames in reverse order back to the first, so every point's truth at the
+last frame is its start; this measures the drift and the false tracks that real motion, motion blur and deformation
+cause over many frames, but it would also reward a tracker that never moves, so it complements the sets with ground
+truth rather than replacing them; ``--roundtrip-conditions`` adds sets of rows with every frame degraded as in the
+homography sets, at ``--roundtrip-strength`` (1: as their last frame), or as in a photometric stress set
+(``stress_dark`` etc.), named ``roundtrip_<condition>_<folder>``). Metrics at the last frame, per method and
+dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``,
+``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``,
+``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder
+hid some points (``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep
+their last position for the EPE statistics and never count as inliers. With KLT in the run, ``summary`` (JSON; the
+table's last lines) counts per group of rows (``pairs``: the ``--sintel`` folders, ``pairs_<condition>``,
+``synthetic``, ``stress``, ``homography[_fixed]_<condition>``, ``roundtrip[_<condition>]``) and over ``all`` of them
+the rows where each other method has at least KLT's inlier fraction and at most its mean inlier EPE (a KLT row
+without inliers counts as beaten on precision), names the rows it loses and gives every method's means.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
@@ -82,6 +82,8 @@ from models.tracking import PointTracker, good_features_to_track
 from models.tracking.klt import klt_track
 
 METHODS = ("ccot", "ccot_ff", "mosse", "klt")
+STRESS_PREFIX = "stress_"  # round-trip conditions taken from the stress sets (data.flow.stress_frames)
+ROUNDTRIP_CONDITIONS = (*HOMOGRAPHY_CONDITIONS, *(STRESS_PREFIX + c for c in PHOTOMETRIC_CONDITIONS))
 COMPILED = "ccot_compiled"  # ccot with its step through torch.compile (--compile)
 ORT = "ccot_ort"  # the runtime's tracker on a ccot bundle (onnxruntime)
 _TRACKERS: dict[tuple, PointTracker] = {}
@@ -164,8 +166,9 @@ def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing:
     """``n_frames`` frames of a real video (a folder of images, :func:`~core.frames.read_frames`) from frame
     ``start`` on, every ``stride``-th (2 or more: the video's own motion that many times faster per frame), and
     then the same frames back to the first (``2 n_frames - 1`` in all), every frame degraded by ``condition`` at
-    ``strength`` (:func:`data.flow.degrade`, seeded; ``motion`` in one direction drawn from the seed); the truth
-    at the last frame is the start points themselves."""
+    ``strength`` (:func:`data.flow.degrade`, seeded; ``motion`` in one direction drawn from the seed) or, for
+    ``stress_<condition>``, by that photometric stress condition (:func:`data.flow.stress_frames`, seeded; no
+    strength); the truth at the last frame is the start points themselves."""
     if n_frames < 2 or start < 0 or stride < 1:
         raise InputError(f"a round trip needs at least 2 frames from a start >= 0 with a stride >= 1, got "
                          f"{n_frames} from {start} with stride {stride}")
@@ -175,7 +178,9 @@ def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing:
         raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames} from frame {start} "
                          f"with stride {stride}")
     frames = frames[start::stride]
-    if condition != "none":
+    if condition.startswith(STRESS_PREFIX):
+        frames = stress_frames(np.stack(frames), condition.removeprefix(STRESS_PREFIX), seed)
+    elif condition != "none":
         rng = np.random.default_rng([seed, HOMOGRAPHY_CONDITIONS.index(condition)])
         angle = rng.uniform(0, np.pi)
         frames = [degrade(frame, condition, strength, rng, angle) for frame in frames]
@@ -536,9 +541,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the round trips' first frame (index into each video's sorted frames)")
     parser.add_argument("--roundtrip-stride", type=int, default=1,
                         help="play every k-th frame of the round-trip videos (k times their motion per frame)")
-    parser.add_argument("--roundtrip-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS, default=["none"],
+    parser.add_argument("--roundtrip-conditions", nargs="+", choices=ROUNDTRIP_CONDITIONS, default=["none"],
                         metavar="CONDITION", help="degradations of the round-trip videos, each a set of rows: "
-                        + ", ".join(HOMOGRAPHY_CONDITIONS))
+                        + ", ".join(ROUNDTRIP_CONDITIONS))
     parser.add_argument("--roundtrip-strength", type=float, default=1.0,
                         help="strength in [0, 1] of the round-trip degradations (1: the homography sets' last frame)")
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")

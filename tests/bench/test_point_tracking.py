@@ -242,3 +242,26 @@ def test_sintel_conditions_add_degraded_rows_with_the_same_truth(tmp_path, capsy
     assert {"pairs", "pairs_dark", "pairs_jpeg"} <= set(out["summary"])
     with pytest.raises(SystemExit):  # a condition that changes the motion is not a photometric one
         point_tracking.build_parser().parse_args(["--sintel", str(folder), "--sintel-conditions", "fast_motion"])
+
+
+def test_roundtrip_under_a_stress_condition(tmp_path, capsys):
+    """``--roundtrip-conditions stress_dark``: the forward frames are those of :func:`data.flow.stress_frames`
+    (seeded), the way back replays them, the rows are named ``roundtrip_stress_dark_<folder>``."""
+    import cv2
+
+    from data.flow import stress_frames
+
+    rng = np.random.default_rng(2)
+    texture = cv2.GaussianBlur(rng.normal(128, 40, (120, 160)), (0, 0), 1.5).clip(0, 255)
+    for t in range(3):
+        cv2.imwrite(str(tmp_path / f"{t:05d}.png"), np.roll(texture, 2 * t, axis=1)[:, 10:-10].astype(np.uint8))
+    plain = np.stack([cv2.imread(str(tmp_path / f"{t:05d}.png"), cv2.IMREAD_GRAYSCALE) for t in range(3)])
+    dark = point_tracking.roundtrip_dataset(tmp_path, 3, 40, condition="stress_dark", seed=4)
+    expected = stress_frames(plain, "dark", 4).round().clip(0, 255).astype(np.uint8)
+    np.testing.assert_array_equal(dark.frames, np.concatenate([expected, expected[-2::-1]]))
+    argv = ["--roundtrip", str(tmp_path), "--roundtrip-frames", "3", "--roundtrip-conditions", "stress_dark",
+            "--points", "30", "--methods", "ccot", "klt", "--repeats", "1", "--json"]
+    assert point_tracking.main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["datasets"]) == {f"roundtrip_stress_dark_{tmp_path.name}"}
+    assert "roundtrip_stress_dark" in out["summary"]
