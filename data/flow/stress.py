@@ -16,7 +16,8 @@ to about 8 px per frame) and changes one thing:
   per frame; the points they cover lose their ground truth (:attr:`SyntheticSequence.occluder`), so this is
   where a tracker should flag points lost.
 
-Every condition is seeded: the same (condition, seed, size) gives the same frames.
+Every condition is seeded: the same (condition, seed, size) gives the same frames. The photometric ones (dark, low
+contrast, illumination, JPEG) also apply to any frames, e.g. a real sequence's (:func:`stress_frames`).
 """
 
 from __future__ import annotations
