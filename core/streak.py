@@ -14,6 +14,9 @@ from core.errors import InputError
 
 Streak = tuple[float, float]  # a straight streak: length in px, angle in rad (x towards y)
 _BLOCK = 8  # px: the block size of JPEG and MPEG compression
+# block-grid ratio (models.tracking.compression.block_grid_ratio) above which a frame shows a codec's block grid:
+# 0.97-1.03 for uncompressed frames and DAVIS's high-quality JPEGs, 1.15 and more at JPEG quality 60 and below
+BLOCK_GRID_PRESENT = 1.1
 
 
 def streak_kernel(length: float, angle: float) -> np.ndarray:
@@ -59,13 +62,16 @@ def streak_change(after: Iterable[Streak], before: Iterable[Streak]) -> float:
     return abs((dxx + dyy) / 2) + math.hypot((dxx - dyy) / 2, dxy)
 
 
-def streak_found(length: float, angle: float, score: float, rival: float, threshold: float) -> bool:
+def streak_found(length: float, angle: float, score: float, rival: float, threshold: float,
+                 block_grid: float = math.inf) -> bool:
     """Whether the cepstral reading of a frame (``models.tracking.motion_blur.motion_blur_streak``: a streak of
     ``length`` px at ``angle`` rad, its ``score`` and ``rival``) shows a straight streak: the score below
-    ``threshold`` (negative), nothing below half of it in other directions, and the streak's end not on the 8 px
-    lattice of block-transform compression (JPEG, MPEG: 8 x 8 blocks aligned with the pixel grid leave their
-    deepest cepstral minima at multiples of 8 px along x and y; a real streak within half a pixel of such a point,
-    e.g. a horizontal pan of 8 or 16 px, is missed, and its blur is matched as a Gaussian's)."""
+    ``threshold`` (negative), nothing below half of it in other directions and, in a frame that shows a codec's
+    block grid (``block_grid``, its block-grid ratio, above :data:`BLOCK_GRID_PRESENT`; inf: assume it does), the
+    streak's end not on the 8 px lattice of block-transform compression (JPEG, MPEG: 8 x 8 blocks aligned with the
+    pixel grid leave their deepest cepstral minima at multiples of 8 px along x and y; in such a frame a real
+    streak within half a pixel of such a point, e.g. a pan of 8 or 16 px along x or y, is missed, and its blur is
+    matched as a Gaussian's). Without a block grid such a minimum is the streak's, and it counts."""
     x, y = length * math.cos(angle), length * math.sin(angle)
     on_lattice = abs(x - _BLOCK * round(x / _BLOCK)) < 0.5 and abs(y - _BLOCK * round(y / _BLOCK)) < 0.5
-    return score < threshold and rival > threshold / 2 and not on_lattice
+    return score < threshold and rival > threshold / 2 and not (on_lattice and block_grid > BLOCK_GRID_PRESENT)

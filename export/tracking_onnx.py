@@ -19,10 +19,11 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   ``reference``, ``profile`` -> ``blur`` (1,) px^2 (:mod:`models.tracking.blur`): the blur matching of
   :meth:`PointTracker.step`, whose branches (retrain on a blurred previous frame, search a blurred copy) the
   runtime takes in numpy with ``cv2.GaussianBlur``; ``thresholds.blur_match_px2`` in the manifest (null: off).
-- ``streak.onnx``: ``frame`` -> ``streak`` (1, 4): length (px), angle (rad), cepstral score and rival of the
-  frame's straight motion blur (:mod:`models.tracking.motion_blur`); with ``thresholds.streak_score`` (null: off)
-  and ``streak_match_px2`` the runtime matches streaks as :meth:`PointTracker._streak_matched_step` does, with
-  ``core.streak.streak_blur``.
+- ``streak.onnx``: ``frame`` -> ``streak`` (1, 5): length (px), angle (rad), cepstral score and rival of the
+  frame's straight motion blur (:mod:`models.tracking.motion_blur`) and its block-grid ratio
+  (:mod:`models.tracking.compression`, for :func:`core.streak.streak_found`); with ``thresholds.streak_score``
+  (null: off) and ``streak_match_px2`` the runtime matches streaks as :meth:`PointTracker._streak_matched_step`
+  does, with ``core.streak.streak_blur``.
 
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
 difference and the lost flags that differ.
@@ -44,6 +45,7 @@ from export.bundle import staged_bundle
 from export.onnx import OPSET, export_onnx
 from models.tracking import PointTracker
 from models.tracking.blur import RadialPowerProfile, gaussian_blur, relative_blur
+from models.tracking.compression import BlockGridRatio
 from models.tracking.motion_blur import MotionBlurStreak
 from models.tracking.point_tracker import METHODS
 from runtime.bundle import write_manifest
@@ -71,6 +73,18 @@ class InitGraph(nn.Module):
     def forward(self, frame: Tensor, points: Tensor) -> tuple[Tensor, ...]:
         state = self.tracker.init(frame, points)
         return state.positions, state.lost, state.psr, state.psr_mean, *state.filters
+
+
+class StreakGraph(nn.Module):
+    """The streak reading of a frame (:func:`~models.tracking.motion_blur.motion_blur_streak`) and its block-grid
+    ratio (:func:`~models.tracking.compression.block_grid_ratio`): frame (1, 1, H, W) -> (1, 5)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.streak, self.block_grid = MotionBlurStreak(), BlockGridRatio()
+
+    def forward(self, frame: Tensor) -> Tensor:
+        return torch.cat([self.streak(frame), self.block_grid(frame)[:, None]], 1)
 
 
 class RelativeBlurGraph(nn.Module):
@@ -132,7 +146,7 @@ def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, w
         export_onnx(RelativeBlurGraph(), (reference, profile), folder / "relative_blur.onnx", ["reference", "profile"],
                     ["blur"])
         streaked = torch.from_numpy(streak_blur(frame[0, 0].numpy(), 9.0, 0.5))[None, None]
-        export_onnx(MotionBlurStreak(), (streaked,), folder / "streak.onnx", ["frame"], ["streak"],
+        export_onnx(StreakGraph(), (streaked,), folder / "streak.onnx", ["frame"], ["streak"],
                     dynamic_shapes=({2: h, 3: w},))
 
 

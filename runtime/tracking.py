@@ -18,6 +18,7 @@ file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P)
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -149,8 +150,10 @@ class OnnxPointTracker:
         and where streak matching is off (the bundle's smallest frame, 64 px, is large enough to measure)."""
         if self.streak_graph is None:
             return None
-        length, angle, score, rival = (float(v) for v in self.streak_graph(image)[0])
-        return (length, angle) if streak_found(length, angle, score, rival, self.streak_score) else None
+        length, angle, score, rival, *grid = (float(v) for v in self.streak_graph(image)[0])
+        block_grid = grid[0] if grid else math.inf  # bundles before the block-grid column: assume a block grid
+        found = streak_found(length, angle, score, rival, self.streak_score, block_grid)
+        return (length, angle) if found else None
 
     def _streak_step(self, image: np.ndarray, previous: np.ndarray, positions: np.ndarray, flags: np.ndarray,
                      means: np.ndarray, filters: list, streak: Streak | None, new_streak: Streak | None,

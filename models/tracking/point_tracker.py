@@ -618,7 +618,8 @@ class PointTracker(nn.Module):
         if self.streak_score is None or self.blur_match is None or too_small or _exporting():
             return None
         length, angle, score, rival = motion_blur_streak(frame).double()[0].tolist()
-        return (length, angle) if streak_found(length, angle, score, rival, self.streak_score) else None
+        found = streak_found(length, angle, score, rival, self.streak_score, float(block_grid_ratio(frame)))
+        return (length, angle) if found else None
 
     def _streak_matched_step(self, forward, frame: Tensor, state: TrackerState, streak: Streak | None) -> TrackerState:
         """:meth:`forward` where this frame or the views the filters were last trained afresh on show a straight

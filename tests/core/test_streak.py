@@ -61,6 +61,8 @@ def test_a_streak_stands_out_in_one_direction_only_and_off_the_block_lattice():
     assert not streak_found(9.0, 0.6, -22.0, -10.6, -10.0)  # a rival direction as deep: a compression block grid
     for length, angle in ((16.1, 0.0), (8.02, math.pi / 2), (16.0, math.pi), (8 * math.sqrt(2), math.pi / 4)):
         assert not streak_found(length, angle, -14.0, -4.7, -10.0)  # on the 8 px lattice
+        assert not streak_found(length, angle, -14.0, -4.7, -10.0, block_grid=1.3)  # a JPEG's block grid shows
+        assert streak_found(length, angle, -14.0, -4.7, -10.0, block_grid=1.0)  # none: the minimum is the streak's
 
 
 def test_bad_input():

@@ -14,6 +14,7 @@ from core.streak import streak_blur
 from data.flow import synthetic_sequence
 from models.tracking import PointTracker
 from models.tracking.blur import radial_power_profile, relative_blur
+from models.tracking.compression import block_grid_ratio
 from models.tracking.motion_blur import motion_blur_streak
 from runtime.tracking import OnnxPointTracker, good_features
 from tests.models.tracking.test_point_tracker import _smooth_image, _translate
@@ -107,8 +108,9 @@ def test_streak_matching_branches_match_pytorch(tracking_bundle) -> None:
     found = [tracker._streak(f[None, None]) for f in images]
     assert [s is None for s in found] == [s is None for s in streaks]
     reference = torch.stack([torch.from_numpy(f) for f in images])[:, None]
-    np.testing.assert_allclose(np.stack([tracker.streak_graph(f[None, None])[0] for f in images]),
-                               motion_blur_streak(reference).numpy(), rtol=1e-3, atol=1e-3)
+    readings = np.stack([tracker.streak_graph(f[None, None])[0] for f in images])
+    np.testing.assert_allclose(readings[:, :4], motion_blur_streak(reference).numpy(), rtol=1e-3, atol=1e-3)
+    np.testing.assert_allclose(readings[:, 4], block_grid_ratio(reference).numpy(), rtol=1e-4)
     start = np.random.default_rng(2).uniform([10, 10], [118, 86], (40, 2))
     tracks, lost, _ = tracker.track(images, start)
     ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],

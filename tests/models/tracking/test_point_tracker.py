@@ -463,6 +463,21 @@ def test_streak_matching_removes_the_scatter_of_a_growing_motion_blur():
     assert errors[-10.0] < 0.5 * errors[None], errors
 
 
+@pytest.mark.parametrize("length", [8.0, 16.0])
+def test_a_streak_on_the_block_lattice_counts_where_no_block_grid_shows(length):
+    """A vertical streak of 8 or 16 px ends on the 8 px lattice where a JPEG block grid leaves its cepstral
+    minima: found (length and angle within 0.3 px and 0.02 rad) in the uncompressed frame, whose block-grid ratio
+    is about 1, and not once the frame is JPEG-compressed (quality 50: a block grid shows, and the minimum could be
+    the grid's)."""
+    frame = _streak_sequence((length,), math.pi / 2, seed=3)[0][0]
+    tracker = PointTracker("ccot")
+    found = tracker._streak(frame[None, None].float())
+    assert found is not None and abs(found[0] - length) < 0.3 and abs(found[1] - math.pi / 2) < 0.02, found
+    ok, data = cv2.imencode(".jpg", frame.numpy().astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, 50])
+    compressed = torch.from_numpy(cv2.imdecode(data, cv2.IMREAD_GRAYSCALE).astype(np.float32))
+    assert tracker._streak(compressed[None, None]) is None
+
+
 def test_streak_score_is_checked():
     with pytest.raises(InputError, match="streak_score"):
         PointTracker("ccot", streak_score=3.0)
