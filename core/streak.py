@@ -17,6 +17,8 @@ _BLOCK = 8  # px: the block size of JPEG and MPEG compression
 # block-grid ratio (models.tracking.compression.block_grid_ratio) above which a frame shows a codec's block grid:
 # 0.97-1.03 for uncompressed frames and DAVIS's high-quality JPEGs, 1.15 and more at JPEG quality 60 and below
 BLOCK_GRID_PRESENT = 1.1
+MIN_QUARTER = 64  # px: the least side of a frame's quarter whose streak is read (streak_uniform)
+UNIFORM_TOLERANCE = 2.0  # px: how far a quarter's streak may end from the frame's in a uniform blur
 
 
 def streak_kernel(length: float, angle: float) -> np.ndarray:
@@ -75,3 +77,25 @@ def streak_found(length: float, angle: float, score: float, rival: float, thresh
     x, y = length * math.cos(angle), length * math.sin(angle)
     on_lattice = abs(x - _BLOCK * round(x / _BLOCK)) < 0.5 and abs(y - _BLOCK * round(y / _BLOCK)) < 0.5
     return score < threshold and rival > threshold / 2 and not (on_lattice and block_grid > BLOCK_GRID_PRESENT)
+
+
+def quarter_slices(height: int, width: int) -> list[tuple[slice, slice]] | None:
+    """The (rows, columns) slices of the four quarters of a ``height x width`` frame, each ``height // 2 x
+    width // 2``; None where that is below :data:`MIN_QUARTER` px a side (too small to read a streak)."""
+    h, w = height // 2, width // 2
+    if min(h, w) < MIN_QUARTER:
+        return None
+    return [(slice(r, r + h), slice(c, c + w)) for r in (0, h) for c in (0, w)]
+
+
+def streak_uniform(streak: Streak, readings: Iterable[Streak], tolerance: float = UNIFORM_TOLERANCE) -> bool:
+    """Whether the ``streak`` (length px, angle rad) found in a frame is the blur of the whole frame: the streak
+    read in each of its quarters (``readings``, see :func:`quarter_slices`) ends within ``tolerance`` px of it (a
+    streak and its reverse are the same blur). A camera's pan or shake blurs every quarter alike; a pan that
+    follows an object leaves it sharp and its quarter reads another streak, or noise."""
+    x, y = streak[0] * math.cos(streak[1]), streak[0] * math.sin(streak[1])
+    for length, angle in readings:
+        qx, qy = length * math.cos(angle), length * math.sin(angle)
+        if min(math.hypot(qx - x, qy - y), math.hypot(qx + x, qy + y)) > tolerance:
+            return False
+    return True

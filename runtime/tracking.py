@@ -10,7 +10,8 @@ numpy state between the calls). Blur matching as in ``PointTracker.step``: the `
 graphs measure how much blurrier each frame is than the one the filters were last trained afresh on, and beyond
 the bundle's ``blur_match_px2`` the sharper view is blurred (``cv2.GaussianBlur``) before the search; where the
 ``streak`` graph finds straight motion blur (``core.streak.streak_found`` with the bundle's ``streak_score``) that
-changes by more than its ``streak_match_px2``, each view is blurred by the other's streak instead. The tracks
+changes by more than its ``streak_match_px2`` (``blur_match_px2`` where the streak reads the same in the frame's
+four quarters), each view is blurred by the other's streak instead. The tracks
 file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
 ``points``, ``method`` and ``frames``.
 """
@@ -30,7 +31,7 @@ from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import writable_folder, write_npz
 from core.frames import read_frames, read_points
-from core.streak import Streak, streak_blur, streak_change, streak_found
+from core.streak import Streak, quarter_slices, streak_blur, streak_change, streak_found, streak_uniform
 from runtime.bundle import Bundle, add_runtime_arguments
 
 
@@ -155,13 +156,24 @@ class OnnxPointTracker:
         found = streak_found(length, angle, score, rival, self.streak_score, block_grid)
         return (length, angle) if found else None
 
+    def _uniform(self, image: np.ndarray, streak: Streak | None) -> bool:
+        """Whether ``streak``, found in the (1, 1, H, W) frame, reads the same in its four quarters (the ``streak``
+        graph on each; ``PointTracker._uniform``)."""
+        quarters = quarter_slices(*image.shape[2:])
+        if streak is None or quarters is None:
+            return False
+        readings = [self.streak_graph(np.ascontiguousarray(image[..., rows, columns]))[0][:2] for rows, columns in
+                    quarters]
+        return streak_uniform(streak, [(float(length), float(angle)) for length, angle in readings])
+
     def _streak_step(self, image: np.ndarray, previous: np.ndarray, positions: np.ndarray, flags: np.ndarray,
                      means: np.ndarray, filters: list, streak: Streak | None, new_streak: Streak | None,
                      template: tuple[Streak, ...]):
         """One step with streak matching (``PointTracker._streak_matched_step``): the step graph's outputs and the
         streaks of the views the filters were last trained afresh on (``streak``: of ``previous``,
         ``new_streak``: of ``image``, ``template``: the filters' streaks before the step)."""
-        if streak_change([new_streak] if new_streak else [], template) <= self.streak_match:
+        limit = self.blur_match if self._uniform(image, new_streak) else self.streak_match
+        if streak_change([new_streak] if new_streak else [], template) <= limit:
             return self.step_graph(image, previous, positions, flags, means, *filters), template
         matched = _streaked(previous, new_streak)
         flags, filters = self._retrained(matched, positions, flags, filters)

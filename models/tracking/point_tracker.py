@@ -60,7 +60,7 @@ from torch import Tensor, nn
 from tqdm import tqdm
 
 from core.errors import InputError
-from core.streak import Streak, streak_change, streak_found, streak_kernel
+from core.streak import Streak, quarter_slices, streak_change, streak_found, streak_kernel, streak_uniform
 from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label, image_noise_std
 from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
@@ -236,7 +236,9 @@ class PointTracker(nn.Module):
         and those of the views the filters were last trained afresh on above which the streaks are matched;
         twice ``blur_match`` by default, since streaks near the detection limit (about 5 px) flicker in and out
         of detection in real video while the blur they stand for barely changes, and every matched step
-        restarts the sample memory.
+        restarts the sample memory. A streak that reads the same in the frame's four quarters (a camera's blur,
+        :meth:`_uniform`) is matched beyond ``blur_match``, as any other blur: the flicker came from partial
+        blur, a pan that follows a sharp object.
         block_limit: block-grid ratio of a frame (:func:`~models.tracking.compression.block_grid_ratio`: about 1
         uncompressed, 1.2-2.4 at JPEG qualities 37-60, 6-26 at quality 3) above which the corrections of the levels on
         which an 8 px codec block spans more than 2 px (levels 0 and 1, never the coarsest) are dropped
@@ -606,7 +608,7 @@ class PointTracker(nn.Module):
             return self._advance(forward, frame, state)
         streak = self._streak(frame)
         if streak is not None or state.template:
-            return self._streak_matched_step(forward, frame, state, streak)
+            return self._streak_matched_step(forward, frame, state, streak, self._uniform(frame, streak))
         return self._blur_matched_step(forward, frame, state)
 
     def _streak(self, frame: Tensor) -> Streak | None:
@@ -621,17 +623,30 @@ class PointTracker(nn.Module):
         found = streak_found(length, angle, score, rival, self.streak_score, float(block_grid_ratio(frame)))
         return (length, angle) if found else None
 
-    def _streak_matched_step(self, forward, frame: Tensor, state: TrackerState, streak: Streak | None) -> TrackerState:
+    def _uniform(self, frame: Tensor, streak: Streak | None) -> bool:
+        """Whether ``streak``, found in the ``(1, 1, H, W)`` frame, blurs the whole frame: it reads the same in the
+        frame's four quarters (:func:`core.streak.streak_uniform`). False without a streak and where the quarters
+        are too small to read (:func:`core.streak.quarter_slices`)."""
+        quarters = quarter_slices(*frame.shape[-2:])
+        if streak is None or quarters is None:
+            return False
+        crops = torch.cat([frame[..., rows, columns] for rows, columns in quarters])
+        return streak_uniform(streak, motion_blur_streak(crops).double()[:, :2].tolist())
+
+    def _streak_matched_step(self, forward, frame: Tensor, state: TrackerState, streak: Streak | None,
+                             uniform: bool = False) -> TrackerState:
         """:meth:`forward` where this frame or the views the filters were last trained afresh on show a straight
-        motion blur (``streak``: this frame's).
+        motion blur (``streak``: this frame's; ``uniform``: it blurs the whole frame, :meth:`_uniform`).
 
         When the two blurs differ by more than ``streak_match`` px^2 in some direction
-        (:func:`core.streak.streak_change`), each view gets the other's streak: the filters are retrained on the
-        previous frame blurred by this frame's streak and search this frame blurred by the previous frame's, so
-        both carry the same two streaks and no bias (a streak's sidelobes have the opposite sign of a
-        Gaussian's, which a correlation filter reads as a shift along the streak). Otherwise the plain step
-        runs. The radial power profiles of the Gaussian matching restart after such a step."""
-        if streak_change([streak] if streak else [], state.template) <= self.streak_match:
+        (:func:`core.streak.streak_change`; ``blur_match`` for a uniform streak), each view gets the other's
+        streak: the filters are retrained on the previous frame blurred by this frame's streak and search this
+        frame blurred by the previous frame's, so both carry the same two streaks and no bias (a streak's
+        sidelobes have the opposite sign of a Gaussian's, which a correlation filter reads as a shift along the
+        streak). Otherwise the plain step runs. The radial power profiles of the Gaussian matching restart after
+        such a step."""
+        limit = self.blur_match if uniform else self.streak_match
+        if streak_change([streak] if streak else [], state.template) <= limit:
             return replace(self._advance(forward, frame, state), streak=streak, template=state.template)
         retrained = self._retrained(self._streak_blurred(state.frame, streak), state)
         new = self._advance(forward, self._streak_blurred(frame, state.streak), retrained)

@@ -8,7 +8,16 @@ import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.streak import streak_blur, streak_change, streak_covariance, streak_found, streak_kernel
+from core.streak import (
+    MIN_QUARTER,
+    quarter_slices,
+    streak_blur,
+    streak_change,
+    streak_covariance,
+    streak_found,
+    streak_kernel,
+    streak_uniform,
+)
 
 
 def test_streak_kernel_is_a_line_of_the_given_length_and_direction():
@@ -63,6 +72,23 @@ def test_a_streak_stands_out_in_one_direction_only_and_off_the_block_lattice():
         assert not streak_found(length, angle, -14.0, -4.7, -10.0)  # on the 8 px lattice
         assert not streak_found(length, angle, -14.0, -4.7, -10.0, block_grid=1.3)  # a JPEG's block grid shows
         assert streak_found(length, angle, -14.0, -4.7, -10.0, block_grid=1.0)  # none: the minimum is the streak's
+
+
+def test_quarters_cover_the_frame_and_refuse_small_ones():
+    frame = np.arange(130 * 141).reshape(130, 141)
+    quarters = quarter_slices(*frame.shape)
+    assert [frame[r, c].shape for r, c in quarters] == [(65, 70)] * 4
+    assert frame[quarters[3]][-1, -1] == frame[129, 139] and frame[quarters[0]][0, 0] == frame[0, 0]
+    assert quarter_slices(2 * MIN_QUARTER - 1, 500) is None and quarter_slices(2 * MIN_QUARTER, 2 * MIN_QUARTER)
+
+
+def test_a_uniform_streak_ends_near_the_frames_in_every_quarter():
+    """Ends compared by hand: (9, 0.6) ends at (7.43, 5.08); a reading 1 px off, the reversed streak and a
+    reading at 1.9 px pass, one quarter 2.3 px off or sharp (another direction) fails."""
+    assert streak_uniform((9.0, 0.6), [(9.0, 0.6), (10.0, 0.6), (9.0, 0.6 + math.pi), (8.0, 0.45)])
+    assert math.hypot(8 * math.cos(0.45) - 9 * math.cos(0.6), 8 * math.sin(0.45) - 9 * math.sin(0.6)) < 2
+    assert not streak_uniform((9.0, 0.6), [(9.0, 0.6), (9.0, 0.6), (9.0, 0.6), (9.0, 0.6 + 0.26)])  # 2.3 px
+    assert not streak_uniform((9.0, 0.6), [(9.0, 0.6), (9.0, 0.6), (9.0, 0.6), (21.0, 2.1)])
 
 
 def test_bad_input():

@@ -97,10 +97,12 @@ def test_blur_matching_branches_match_pytorch(tracking_bundle) -> None:
     assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
 
 
-def test_streak_matching_branches_match_pytorch(tracking_bundle) -> None:
+@pytest.mark.parametrize("size", [(96, 128), (144, 160)])
+def test_streak_matching_branches_match_pytorch(tracking_bundle, size) -> None:
     """A motion blur that sets in, grows, turns and stops: the runtime finds the same streaks (its ``streak`` graph
-    against PyTorch's), takes the same cross-blurred steps and gives the same tracks."""
-    seq = synthetic_sequence(frames=5, size=(96, 128), max_motion=3.0, blur=0.0, seed=5)
+    against PyTorch's), takes the same cross-blurred steps and gives the same tracks; at 144 x 160 the quarters
+    are large enough to find the streaks uniform (matched beyond ``blur_match``), in both alike."""
+    seq = synthetic_sequence(frames=5, size=size, max_motion=3.0, blur=0.0, seed=5)
     streaks = (None, (8.0, 0.4), (11.0, 0.5), (9.0, 2.0), None)  # changes beyond the 4 px^2 threshold
     images = [f if s is None else streak_blur(f, *s) for f, s in zip(seq.frames.astype(np.float32), streaks,
                                                                       strict=True)]
@@ -111,7 +113,11 @@ def test_streak_matching_branches_match_pytorch(tracking_bundle) -> None:
     readings = np.stack([tracker.streak_graph(f[None, None])[0] for f in images])
     np.testing.assert_allclose(readings[:, :4], motion_blur_streak(reference).numpy(), rtol=1e-3, atol=1e-3)
     np.testing.assert_allclose(readings[:, 4], block_grid_ratio(reference).numpy(), rtol=1e-4)
-    start = np.random.default_rng(2).uniform([10, 10], [118, 86], (40, 2))
+    uniform = [tracker._uniform(f[None, None], s) for f, s in zip(images, found, strict=True)]
+    assert uniform == [PointTracker("ccot")._uniform(torch.from_numpy(f)[None, None], s)
+                       for f, s in zip(images, found, strict=True)]
+    assert any(uniform) == (size == (144, 160))
+    start = np.random.default_rng(2).uniform([10, 10], [size[1] - 10, size[0] - 10], (40, 2))
     tracks, lost, _ = tracker.track(images, start)
     ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
                                                          torch.from_numpy(start).float())

@@ -478,6 +478,20 @@ def test_a_streak_on_the_block_lattice_counts_where_no_block_grid_shows(length):
     assert tracker._streak(compressed[None, None]) is None
 
 
+def test_a_streak_is_uniform_where_it_blurs_every_quarter():
+    """An 8 px streak at 0.6 rad read in each quarter of the frame: a panning camera's blurs all four alike, the
+    same streak over the left half only (a pan that follows an object, sharp on the right) is not uniform; no
+    streak, or quarters too small to read, never are."""
+    tracker = PointTracker("ccot")
+    streaked = _streak_sequence((8.0,), 0.6, seed=3)[0][0]
+    sharp = _streak_sequence((0.0,), 0.6, seed=3)[0][0]  # the same crop and noise, no blur
+    partial = torch.cat([streaked[:, :96], sharp[:, 96:]], 1)
+    assert tracker._uniform(streaked[None, None].float(), (8.0, 0.6))
+    assert not tracker._uniform(partial[None, None].float(), (8.0, 0.6))
+    assert not tracker._uniform(streaked[None, None].float(), None)
+    assert not tracker._uniform(streaked[None, None, :120].float(), (8.0, 0.6))  # quarters of 60 px
+
+
 def test_streak_score_is_checked():
     with pytest.raises(InputError, match="streak_score"):
         PointTracker("ccot", streak_score=3.0)
