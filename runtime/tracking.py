@@ -156,12 +156,16 @@ class OnnxPointTracker:
         found = streak_found(length, angle, score, rival, self.streak_score, block_grid)
         return (length, angle) if found else None
 
-    def _uniform(self, image: np.ndarray, streak: Streak | None) -> bool:
-        """Whether ``streak``, found in the (1, 1, H, W) frame, reads the same in its four quarters (the ``streak``
-        graph on each; ``PointTracker._uniform``)."""
+    def _uniform(self, image: np.ndarray, streak: Streak | None, previous: np.ndarray | None = None) -> bool:
+        """Whether ``streak``, found in the (1, 1, H, W) frame, reads the same in its four quarters and not already
+        in the ``previous`` frame (the ``streak`` graph on each; ``PointTracker._uniform``)."""
         quarters = quarter_slices(*image.shape[2:])
         if streak is None or quarters is None:
             return False
+        if previous is not None:
+            length, angle = (float(v) for v in self.streak_graph(previous)[0][:2])
+            if streak_uniform(streak, [(length, angle)]):
+                return False
         readings = [self.streak_graph(np.ascontiguousarray(image[..., rows, columns]))[0][:2] for rows, columns in
                     quarters]
         return streak_uniform(streak, [(float(length), float(angle)) for length, angle in readings])
@@ -172,7 +176,8 @@ class OnnxPointTracker:
         """One step with streak matching (``PointTracker._streak_matched_step``): the step graph's outputs and the
         streaks of the views the filters were last trained afresh on (``streak``: of ``previous``,
         ``new_streak``: of ``image``, ``template``: the filters' streaks before the step)."""
-        limit = self.blur_match if self._uniform(image, new_streak) else self.streak_match
+        uniform = self._uniform(image, new_streak, None if template else previous)
+        limit = self.blur_match if uniform else self.streak_match
         if streak_change([new_streak] if new_streak else [], template) <= limit:
             return self.step_graph(image, previous, positions, flags, means, *filters), template
         matched = _streaked(previous, new_streak)

@@ -608,7 +608,8 @@ class PointTracker(nn.Module):
             return self._advance(forward, frame, state)
         streak = self._streak(frame)
         if streak is not None or state.template:
-            return self._streak_matched_step(forward, frame, state, streak, self._uniform(frame, streak))
+            previous = None if state.template else state.frame  # a first streak: was it there already?
+            return self._streak_matched_step(forward, frame, state, streak, self._uniform(frame, streak, previous))
         return self._blur_matched_step(forward, frame, state)
 
     def _streak(self, frame: Tensor) -> Streak | None:
@@ -623,12 +624,16 @@ class PointTracker(nn.Module):
         found = streak_found(length, angle, score, rival, self.streak_score, float(block_grid_ratio(frame)))
         return (length, angle) if found else None
 
-    def _uniform(self, frame: Tensor, streak: Streak | None) -> bool:
+    def _uniform(self, frame: Tensor, streak: Streak | None, previous: Tensor | None = None) -> bool:
         """Whether ``streak``, found in the ``(1, 1, H, W)`` frame, blurs the whole frame: it reads the same in the
-        frame's four quarters (:func:`core.streak.streak_uniform`). False without a streak and where the quarters
-        are too small to read (:func:`core.streak.quarter_slices`)."""
+        frame's four quarters (:func:`core.streak.streak_uniform`). False without a streak, where the quarters are
+        too small to read (:func:`core.streak.quarter_slices`) and where the ``previous`` frame (given where the
+        filters know no streak yet) reads a streak that ends at the same place: it was there already, below the
+        detection tests, so this is no new blur."""
         quarters = quarter_slices(*frame.shape[-2:])
         if streak is None or quarters is None:
+            return False
+        if previous is not None and streak_uniform(streak, motion_blur_streak(previous).double()[:, :2].tolist()):
             return False
         crops = torch.cat([frame[..., rows, columns] for rows, columns in quarters])
         return streak_uniform(streak, motion_blur_streak(crops).double()[:, :2].tolist())

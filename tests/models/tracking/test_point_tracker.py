@@ -481,7 +481,7 @@ def test_a_streak_on_the_block_lattice_counts_where_no_block_grid_shows(length):
 def test_a_streak_is_uniform_where_it_blurs_every_quarter():
     """An 8 px streak at 0.6 rad read in each quarter of the frame: a panning camera's blurs all four alike, the
     same streak over the left half only (a pan that follows an object, sharp on the right) is not uniform; no
-    streak, or quarters too small to read, never are."""
+    streak, quarters too small to read, or a previous frame with the same streak, never are."""
     tracker = PointTracker("ccot")
     streaked = _streak_sequence((8.0,), 0.6, seed=3)[0][0]
     sharp = _streak_sequence((0.0,), 0.6, seed=3)[0][0]  # the same crop and noise, no blur
@@ -490,6 +490,9 @@ def test_a_streak_is_uniform_where_it_blurs_every_quarter():
     assert not tracker._uniform(partial[None, None].float(), (8.0, 0.6))
     assert not tracker._uniform(streaked[None, None].float(), None)
     assert not tracker._uniform(streaked[None, None, :120].float(), (8.0, 0.6))  # quarters of 60 px
+    # a first streak that the previous frame already showed (below the detection tests) is no new blur
+    assert tracker._uniform(streaked[None, None].float(), (8.0, 0.6), previous=sharp[None, None].float())
+    assert not tracker._uniform(streaked[None, None].float(), (8.0, 0.6), previous=streaked[None, None].float())
 
 
 def test_streak_score_is_checked():
