@@ -157,14 +157,15 @@ class OnnxPointTracker:
         return (length, angle) if found else None
 
     def _uniform(self, image: np.ndarray, streak: Streak | None, previous: np.ndarray | None = None) -> bool:
-        """Whether ``streak``, found in the (1, 1, H, W) frame, reads the same in its four quarters and not already
-        in the ``previous`` frame (the ``streak`` graph on each; ``PointTracker._uniform``)."""
+        """Whether ``streak``, found in the (1, 1, H, W) frame, reads the same in its four quarters and was not read
+        already, with a score below the threshold, in the ``previous`` frame (the ``streak`` graph on each;
+        ``PointTracker._uniform``)."""
         quarters = quarter_slices(*image.shape[2:])
         if streak is None or quarters is None:
             return False
         if previous is not None:
-            length, angle = (float(v) for v in self.streak_graph(previous)[0][:2])
-            if streak_uniform(streak, [(length, angle)]):
+            length, angle, score = (float(v) for v in self.streak_graph(previous)[0][:3])
+            if score < self.streak_score and streak_uniform(streak, [(length, angle)]):
                 return False
         readings = [self.streak_graph(np.ascontiguousarray(image[..., rows, columns]))[0][:2] for rows, columns in
                     quarters]

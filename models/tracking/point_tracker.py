@@ -628,13 +628,16 @@ class PointTracker(nn.Module):
         """Whether ``streak``, found in the ``(1, 1, H, W)`` frame, blurs the whole frame: it reads the same in the
         frame's four quarters (:func:`core.streak.streak_uniform`). False without a streak, where the quarters are
         too small to read (:func:`core.streak.quarter_slices`) and where the ``previous`` frame (given where the
-        filters know no streak yet) reads a streak that ends at the same place: it was there already, below the
-        detection tests, so this is no new blur."""
+        filters know no streak yet) reads a streak that ends at the same place with a score below
+        ``streak_score``: it was there already, missed only by the rival or lattice test, so this is no new
+        blur."""
         quarters = quarter_slices(*frame.shape[-2:])
         if streak is None or quarters is None:
             return False
-        if previous is not None and streak_uniform(streak, motion_blur_streak(previous).double()[:, :2].tolist()):
-            return False
+        if previous is not None:
+            length, angle, score = motion_blur_streak(previous).double()[0, :3].tolist()
+            if score < self.streak_score and streak_uniform(streak, [(length, angle)]):
+                return False
         crops = torch.cat([frame[..., rows, columns] for rows, columns in quarters])
         return streak_uniform(streak, motion_blur_streak(crops).double()[:, :2].tolist())
 
