@@ -621,7 +621,9 @@ class PointTracker(nn.Module):
         if self.streak_score is None or self.blur_match is None or too_small or _exporting():
             return None
         length, angle, score, rival = motion_blur_streak(frame).double()[0].tolist()
-        found = streak_found(length, angle, score, rival, self.streak_score, float(block_grid_ratio(frame)))
+        # only a candidate streak needs the block grid (the lattice test); without one streak_found is False anyway
+        block_grid = float(block_grid_ratio(frame)) if score < self.streak_score else math.inf
+        found = streak_found(length, angle, score, rival, self.streak_score, block_grid)
         return (length, angle) if found else None
 
     def _uniform(self, frame: Tensor, streak: Streak | None, previous: Tensor | None = None) -> bool:
