@@ -10,7 +10,8 @@ and the synthetic stress conditions of :mod:`data.flow.stress` (``--stress [COND
 ``stress_<condition>``: dark, low contrast, motion blur, fast motion, illumination change, JPEG, a long run) and
 real photographs seen through chains of small homographies under growing defocus or motion blur, JPEG compression or
 darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file
-stem>``, 6 frames; ``--homography-cameras moving fixed`` adds the same sets seen by a fixed camera, as the Oxford
+stem>``, 6 frames; the conditions ``stress_dark`` etc. put every frame under a photometric stress condition
+instead; ``--homography-cameras moving fixed`` adds the same sets seen by a fixed camera, as the Oxford
 sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs only those) and real videos without
 ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named ``roundtrip_<folder>``:
 ``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on, every ``--roundtrip-stride``-th (default 1;
@@ -82,8 +83,9 @@ from models.tracking import PointTracker, good_features_to_track
 from models.tracking.klt import klt_track
 
 METHODS = ("ccot", "ccot_ff", "mosse", "klt")
-STRESS_PREFIX = "stress_"  # round-trip conditions taken from the stress sets (data.flow.stress_frames)
-ROUNDTRIP_CONDITIONS = (*HOMOGRAPHY_CONDITIONS, *(STRESS_PREFIX + c for c in PHOTOMETRIC_CONDITIONS))
+STRESS_PREFIX = "stress_"  # sequence conditions taken from the stress sets (data.flow.stress_frames)
+# the conditions of the homography sets and the round trips
+SEQUENCE_CONDITIONS = (*HOMOGRAPHY_CONDITIONS, *(STRESS_PREFIX + c for c in PHOTOMETRIC_CONDITIONS))
 COMPILED = "ccot_compiled"  # ccot with its step through torch.compile (--compile)
 ORT = "ccot_ort"  # the runtime's tracker on a ccot bundle (onnxruntime)
 _TRACKERS: dict[tuple, PointTracker] = {}
@@ -155,8 +157,13 @@ def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0, 
 def homography_dataset(image: str | Path, condition: str, n_points: int, seed: int = 0, spacing: int = 3,
                        frames: int = 6, moving: bool = True) -> Dataset:
     """A real photograph (read as gray) through ``frames`` chained homographies under ``condition``
-    (:func:`data.flow.homography_sequence`; ``moving=False``: a fixed camera), ground truth at the last frame."""
-    seq = homography_sequence(read_frame_gray(image), condition, frames, seed, moving=moving)
+    (:func:`data.flow.homography_sequence`; ``moving=False``: a fixed camera) or, for ``stress_<condition>``,
+    the undegraded views under that photometric stress condition (:func:`data.flow.stress_frames`, seeded: every
+    frame at full strength), ground truth at the last frame."""
+    stress = condition.removeprefix(STRESS_PREFIX) if condition.startswith(STRESS_PREFIX) else None
+    seq = homography_sequence(read_frame_gray(image), "none" if stress else condition, frames, seed, moving=moving)
+    if stress:
+        seq.frames = stress_frames(seq.frames, stress, seed)
     frames_u8, points, tracks, valid = _tracked(seq, n_points, spacing)
     return Dataset(frames_u8, points, tracks[-1], valid[-1])
 
@@ -527,9 +534,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="add synthetic stress conditions (all without names): " + ", ".join(STRESS_CONDITIONS))
     parser.add_argument("--homography", nargs="+", action="extend", default=[], metavar="IMAGE",
                         help="real images to track through chained homographies; repeat or list several")
-    parser.add_argument("--homography-conditions", nargs="+", choices=HOMOGRAPHY_CONDITIONS,
+    parser.add_argument("--homography-conditions", nargs="+", choices=SEQUENCE_CONDITIONS,
                         default=["blur", "motion", "jpeg", "light"], metavar="CONDITION",
-                        help="degradations of the homography sequences: " + ", ".join(HOMOGRAPHY_CONDITIONS))
+                        help="degradations of the homography sequences: " + ", ".join(SEQUENCE_CONDITIONS))
     parser.add_argument("--homography-cameras", nargs="+", choices=("moving", "fixed"), default=["moving"],
                         help="moving: the chained homographies; fixed: the same frames' degradation with a camera "
                         "that does not move (as in the Oxford sets), rows named homography_fixed_<condition>_...")
@@ -541,9 +548,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the round trips' first frame (index into each video's sorted frames)")
     parser.add_argument("--roundtrip-stride", type=int, default=1,
                         help="play every k-th frame of the round-trip videos (k times their motion per frame)")
-    parser.add_argument("--roundtrip-conditions", nargs="+", choices=ROUNDTRIP_CONDITIONS, default=["none"],
+    parser.add_argument("--roundtrip-conditions", nargs="+", choices=SEQUENCE_CONDITIONS, default=["none"],
                         metavar="CONDITION", help="degradations of the round-trip videos, each a set of rows: "
-                        + ", ".join(ROUNDTRIP_CONDITIONS))
+                        + ", ".join(SEQUENCE_CONDITIONS))
     parser.add_argument("--roundtrip-strength", type=float, default=1.0,
                         help="strength in [0, 1] of the round-trip degradations (1: the homography sets' last frame)")
     parser.add_argument("--frames", type=int, default=24, help="synthetic sequence length")

@@ -265,3 +265,31 @@ def test_roundtrip_under_a_stress_condition(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert set(out["datasets"]) == {f"roundtrip_stress_dark_{tmp_path.name}"}
     assert "roundtrip_stress_dark" in out["summary"]
+
+
+def test_homography_under_a_stress_condition(tmp_path, capsys):
+    """``--homography-conditions stress_jpeg``: the frames are the undegraded homography views under
+    :func:`data.flow.stress_frames` (seeded), the truth is the homographies', the rows are named
+    ``homography_stress_jpeg_<folder>_<stem>``."""
+    import cv2
+
+    from data.flow import homography_sequence, stress_frames
+
+    rng = np.random.default_rng(3)
+    texture = cv2.GaussianBlur(rng.normal(128, 40, (96, 128)), (0, 0), 1.5).clip(0, 255).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "img.png"), texture)
+    stressed = point_tracking.homography_dataset(tmp_path / "img.png", "stress_jpeg", 40, seed=2)
+    plain = point_tracking.homography_dataset(tmp_path / "img.png", "none", 40, seed=2)
+    views = homography_sequence(texture.astype(np.float32), "none", 6, 2)
+    expected = stress_frames(views.frames, "jpeg", 2).round().clip(0, 255).astype(np.uint8)
+    np.testing.assert_array_equal(stressed.frames, expected)
+    truth, valid = views.track(stressed.points)
+    np.testing.assert_allclose(stressed.truth, truth[-1])
+    np.testing.assert_array_equal(stressed.valid, valid[-1])
+    assert not np.array_equal(stressed.frames, plain.frames)
+    argv = ["--homography", str(tmp_path / "img.png"), "--homography-conditions", "stress_jpeg", "--points", "30",
+            "--methods", "ccot", "klt", "--repeats", "1", "--json"]
+    assert point_tracking.main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["datasets"]) == {f"homography_stress_jpeg_{tmp_path.name}_img"}
+    assert "homography_stress_jpeg" in out["summary"]
