@@ -14,7 +14,8 @@ needed together: each alone fires on correct tracks in dark, blurred or compress
 on points whose texture always gives a low PSR; together they still catch many of the points that an occluder
 covers. A lost point is still searched from where it was frozen, and it comes back where its filters find a peak
 that is strong both against the frame's tracked points and against its own history and that tracks back
-(``psr_recover``): an occluder has moved on, or the flag was a false alarm.
+(``psr_recover``; back to where it was frozen or to where the frame's mean step puts it in the previous frame):
+an occluder has moved on, or the flag was a false alarm.
 In a frame compressed until its 8 px codec blocks are nearly flat (a block-grid ratio above ``block_limit``,
 :func:`~models.tracking.compression.block_grid_ratio`) the two finest levels, on which a block spans more than
 2 px, match the blocks rather than the scene: their corrections are dropped and the coarser levels' estimate stands,
@@ -30,9 +31,12 @@ the filters are retrained on the previous frame blurred by this frame's streak a
 blurred by the previous frame's (:meth:`_streak_matched_step`), since a Gaussian stand-in for a streak leaves
 about a pixel of scatter along it.
 
-Cost: the patches are small (default 21 px at every level, as KLT's window: level 0's sets the accuracy, the
-coarsest bounds the largest motion at about 80 px per frame), the filters keep only the lower 70 % of the
-frequencies at level 0 and 50 % at the coarser levels (band-limited, as in C-COT) and their DFTs are real matrix
+Cost: the patches are small (default 31 px at level 0, which sets the accuracy, and 21 px, KLT's window, at the
+coarser levels; the coarsest bounds the largest motion at about 80 px per frame). Template and search patch both
+carry the Hann window, so the correlation weights a pixel by the window's square, and where noise or compression
+limits the precision, the scatter of a weighted shift estimate (``sqrt(sum w^4) / sum w^2`` per axis) is 1.36
+times that of KLT's uniform 21 px window for a 21 px patch and 1.13 times for a 31 px one. The filters keep only
+the lower half of the frequencies (band-limited, as in C-COT) and their DFTs are real matrix
 products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation folded in; Newton
 refinement on the Fourier series runs where it sets the output (level 0), the coarser levels take the grid peak
 refined by a parabola. Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
@@ -79,7 +83,8 @@ _PYRDOWN_TAPS = (1.0, 5.0, 10.0, 10.0, 5.0, 1.0)
 # the variance of white noise after one pyramid level: the squared taps summed, over both axes
 _PYRDOWN_NOISE_GAIN = (sum(t * t for t in _PYRDOWN_TAPS) / sum(_PYRDOWN_TAPS) ** 2) ** 2
 _SEARCH_SIGMA = 3.0  # px: the default displacement prior of the fine levels (PointTracker's search_sigma)
-_FINE_BAND, _COARSE_BAND = 0.7, 0.5  # default band of level 0 and of the coarser levels (PointTracker's band)
+_FINE_PATCH, _COARSE_PATCH = 31, 21  # px: default patch side at level 0 and at the coarser levels (patch_size)
+_BAND = 0.5  # default fraction of each level's frequencies the filters keep (PointTracker's band)
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
 _BLOCK_LEVELS = 2  # the finest levels, on which an 8 px codec block spans more than 2 px (PointTracker's block_limit)
 
@@ -192,8 +197,9 @@ class PointTracker(nn.Module):
     Args:
         method: ``ccot``, ``ccot_ff`` or ``mosse``.
         levels: pyramid levels (coarse-to-fine search). patch_size: odd patch side (px of that level), one
-        for all levels or one per level, finest first. The coarsest patch bounds the largest motion (about a
-        quarter of its side, in coarsest-level pixels); the finer levels only correct the coarser estimate.
+        for all levels or one per level, finest first; None: 31 px at level 0, 21 px at the coarser levels. The
+        coarsest patch bounds the largest motion (about a quarter of its side, in coarsest-level pixels); the finer
+        levels only correct the coarser estimate, and level 0's sets the precision (the module docstring).
         sigma: label std in px of each level. eta: learning rate (default per method: 0.1, 1.0, 0.125).
         reg_rel: regulariser relative to the mean sample energy (``beta^2`` / ``eps``).
         newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
@@ -214,13 +220,15 @@ class PointTracker(nn.Module):
         the displacement prior chose (None: the PSR test alone), or when its PSR is below ``psr_threshold``
         (no peak at all; in a compressed frame only ``block_psr_threshold`` applies, below). psr_recover: a lost
         point comes back when its PSR passes the frame test above and is at least ``psr_recover`` times its
-        running mean from before it was lost and it passes the forward-backward test (one with no history, lost in
+        running mean from before it was lost and it passes the forward-backward test, back to where it was frozen
+        or to where the frame's mean step puts it in the previous frame (:meth:`_origin`; one with no history, lost in
         its first step or outside the image from the start, never does); None: lost is final. psr_exclude: PSR
         exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
-        the sample spectra and the transforms shrink with it. None: 0.7 at level 0, 0.5 at the coarser levels,
-        which only have to land the next level's search within a pixel.
+        the sample spectra and the transforms shrink with it. Default 0.5: at the coarser levels, which only have
+        to land the next level's search within a pixel, and at level 0, whose 31 px patch then has the spectrum
+        size of a 21 px patch at 0.7 (as precise on the clean real pairs, the wider patch's precision in noise).
         noise_reg: weight of the noise-adaptive regulariser (0: off): the filter's denominator gains
         ``noise_reg`` times the expected power of the frame's noise in every frequency of the point's
         normalised sample (:meth:`_noise_power`), so frequencies where a blurred, dark or low-contrast patch
@@ -254,7 +262,7 @@ class PointTracker(nn.Module):
         self,
         method: str = "ccot",
         levels: int = 4,
-        patch_size: int | tuple[int, ...] = 21,
+        patch_size: int | tuple[int, ...] | None = None,
         sigma: float = 1.0,
         eta: float | None = None,
         reg_rel: float = 1e-2,
@@ -266,7 +274,7 @@ class PointTracker(nn.Module):
         psr_recover: float | None = 0.7,
         fb_threshold: float | None = 1.0,
         psr_exclude: int = 7,
-        band: float | tuple[float, ...] | None = None,
+        band: float | tuple[float, ...] = _BAND,
         noise_reg: float = 30.0,
         blur_match: float | None = 2.0,
         streak_score: float | None = -10.0,
@@ -277,6 +285,8 @@ class PointTracker(nn.Module):
         super().__init__()
         if method not in METHODS:
             raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
+        if patch_size is None:
+            patch_size = (_FINE_PATCH,) + (_COARSE_PATCH,) * (levels - 1)
         self.sizes = _per_level(patch_size, levels, "patch_size")
         if any(n % 2 == 0 for n in self.sizes) or self.sizes[0] < psr_exclude + 2:
             raise InputError(f"patch sizes must be odd and larger than the PSR window, got {self.sizes}")
@@ -314,8 +324,6 @@ class PointTracker(nn.Module):
         if not block_psr_threshold >= 0:
             raise InputError(f"block_psr_threshold must be a PSR >= 0, got {block_psr_threshold}")
         self.block_psr_threshold = block_psr_threshold
-        if band is None:
-            band = (_FINE_BAND,) + (_COARSE_BAND,) * (levels - 1)
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")
@@ -512,6 +520,10 @@ class PointTracker(nn.Module):
             # the other weak points, and the lost points that would come back, take the forward-backward test
             ambiguous = (weak | back) & (_peak_gap(psr_argmax, argmax, score.shape[0]) > self.fb_threshold)
             misses = self._fails_backward((weak | back) & ~ambiguous, previous, start, *sample, noise)
+            # a returning point that does not track back to where it was frozen may track back to where the frame's
+            # mean step puts it (it moved on while frozen)
+            origin = self._origin(start, moved, lost, back)
+            misses = (misses & ~back) | self._fails_backward(misses & back, previous, origin, *sample, noise)
             weak, back = weak & (ambiguous | misses), back & ~(ambiguous | misses)
         floor = fine_weight * self.psr_threshold + (1 - fine_weight) * self.block_psr_threshold
         lost = (lost | weak | ~(psr >= floor)) & ~back
@@ -524,6 +536,16 @@ class PointTracker(nn.Module):
             shift = (target + 0.5) / 2**level - 0.5 - centres[level]
             updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
         return positions, lost, psr, psr_mean, *updated
+
+    @staticmethod
+    def _origin(start: Tensor, moved: Tensor, lost: Tensor, back: Tensor) -> Tensor:
+        """Where a point ``(P, 2)`` was in the previous frame if it moved as the frame does: its start, or for a
+        point coming ``back`` (frozen while it may have moved on) its new position less the mean step ``moved -
+        start`` of the points tracked into this frame (not ``lost``). A returning point passes the
+        forward-backward test if it tracks back to where it was frozen or to this origin."""
+        tracked = (~lost).to(start.dtype).unsqueeze(-1)
+        step = ((moved - start) * tracked).sum(0) / tracked.sum().clamp_min(1)
+        return torch.where(back.unsqueeze(-1), moved - step, start)
 
     def _fails_backward(
         self, weak: Tensor, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor, noise: Tensor | None = None
