@@ -5,7 +5,7 @@ matches it and by the deployment runtime)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import cv2
 import numpy as np
@@ -62,6 +62,15 @@ def streak_change(after: Iterable[Streak], before: Iterable[Streak]) -> float:
     (axx, axy, ayy), (bxx, bxy, byy) = streak_covariance(after), streak_covariance(before)
     dxx, dxy, dyy = axx - bxx, axy - bxy, ayy - byy
     return abs((dxx + dyy) / 2) + math.hypot((dxx - dyy) / 2, dxy)
+
+
+def streaks_matched(change: float, streak_match: float, blur_match: float, uniform: Callable[[], bool]) -> bool:
+    """Whether two views whose streaks differ by ``change`` px^2 (:func:`streak_change`) are matched: beyond
+    ``streak_match``, or beyond ``blur_match`` where the new streak blurs the whole frame (``uniform()``, asked only
+    where the two limits disagree, since it reads the frame's quarters)."""
+    if min(streak_match, blur_match) < change <= max(streak_match, blur_match):
+        return change > (blur_match if uniform() else streak_match)
+    return change > streak_match
 
 
 def streak_found(length: float, angle: float, score: float, rival: float, threshold: float,

@@ -31,7 +31,15 @@ from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import writable_folder, write_npz
 from core.frames import read_frames, read_points
-from core.streak import Streak, quarter_slices, streak_blur, streak_change, streak_found, streak_uniform
+from core.streak import (
+    Streak,
+    quarter_slices,
+    streak_blur,
+    streak_change,
+    streak_found,
+    streak_uniform,
+    streaks_matched,
+)
 from runtime.bundle import Bundle, add_runtime_arguments
 
 
@@ -177,9 +185,10 @@ class OnnxPointTracker:
         """One step with streak matching (``PointTracker._streak_matched_step``): the step graph's outputs and the
         streaks of the views the filters were last trained afresh on (``streak``: of ``previous``,
         ``new_streak``: of ``image``, ``template``: the filters' streaks before the step)."""
-        uniform = self._uniform(image, new_streak, None if template else previous)
-        limit = self.blur_match if uniform else self.streak_match
-        if streak_change([new_streak] if new_streak else [], template) <= limit:
+        change = streak_change([new_streak] if new_streak else [], template)
+        first = None if template else previous  # a first streak: was it there already?
+        if not streaks_matched(change, self.streak_match, self.blur_match,
+                               lambda: self._uniform(image, new_streak, first)):
             return self.step_graph(image, previous, positions, flags, means, *filters), template
         matched = _streaked(previous, new_streak)
         flags, filters = self._retrained(matched, positions, flags, filters)

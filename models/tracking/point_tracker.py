@@ -64,7 +64,15 @@ from torch import Tensor, nn
 from tqdm import tqdm
 
 from core.errors import InputError
-from core.streak import Streak, quarter_slices, streak_change, streak_found, streak_kernel, streak_uniform
+from core.streak import (
+    Streak,
+    quarter_slices,
+    streak_change,
+    streak_found,
+    streak_kernel,
+    streak_uniform,
+    streaks_matched,
+)
 from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label, image_noise_std
 from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
@@ -631,7 +639,7 @@ class PointTracker(nn.Module):
         streak = self._streak(frame)
         if streak is not None or state.template:
             previous = None if state.template else state.frame  # a first streak: was it there already?
-            return self._streak_matched_step(forward, frame, state, streak, self._uniform(frame, streak, previous))
+            return self._streak_matched_step(forward, frame, state, streak, previous)
         return self._blur_matched_step(forward, frame, state)
 
     def _streak(self, frame: Tensor) -> Streak | None:
@@ -666,9 +674,10 @@ class PointTracker(nn.Module):
         return streak_uniform(streak, motion_blur_streak(crops).double()[:, :2].tolist())
 
     def _streak_matched_step(self, forward, frame: Tensor, state: TrackerState, streak: Streak | None,
-                             uniform: bool = False) -> TrackerState:
+                             previous: Tensor | None = None) -> TrackerState:
         """:meth:`forward` where this frame or the views the filters were last trained afresh on show a straight
-        motion blur (``streak``: this frame's; ``uniform``: it blurs the whole frame, :meth:`_uniform`).
+        motion blur (``streak``: this frame's; ``previous``: the frame before where the filters know no streak yet,
+        for :meth:`_uniform`).
 
         When the two blurs differ by more than ``streak_match`` px^2 in some direction
         (:func:`core.streak.streak_change`; ``blur_match`` for a uniform streak), each view gets the other's
@@ -677,8 +686,9 @@ class PointTracker(nn.Module):
         sidelobes have the opposite sign of a Gaussian's, which a correlation filter reads as a shift along the
         streak). Otherwise the plain step runs. The radial power profiles of the Gaussian matching restart after
         such a step."""
-        limit = self.blur_match if uniform else self.streak_match
-        if streak_change([streak] if streak else [], state.template) <= limit:
+        change = streak_change([streak] if streak else [], state.template)
+        if not streaks_matched(change, self.streak_match, self.blur_match,
+                               lambda: self._uniform(frame, streak, previous)):
             return replace(self._advance(forward, frame, state), streak=streak, template=state.template)
         retrained = self._retrained(self._streak_blurred(state.frame, streak), state)
         new = self._advance(forward, self._streak_blurred(frame, state.streak), retrained)

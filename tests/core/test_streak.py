@@ -17,6 +17,7 @@ from core.streak import (
     streak_found,
     streak_kernel,
     streak_uniform,
+    streaks_matched,
 )
 
 
@@ -98,3 +99,17 @@ def test_bad_input():
         streak_kernel(5.0, math.nan)
     with pytest.raises(InputError, match=r"\(H, W\)"):
         streak_blur(np.zeros((4, 4, 3)), 5.0, 0.0)
+
+
+def test_streaks_matched_asks_for_uniformity_only_between_the_limits():
+    """Beyond ``streak_match`` (4) or within ``blur_match`` (2) the answer is fixed and the quarters are not read;
+    in between a uniform streak is matched (beyond ``blur_match``) and a partial one is not."""
+    asked = []
+
+    def uniform(answer):
+        return lambda: asked.append(answer) or answer
+
+    assert not streaks_matched(1.5, 4.0, 2.0, uniform(True)) and streaks_matched(4.5, 4.0, 2.0, uniform(False))
+    assert asked == []
+    assert streaks_matched(3.0, 4.0, 2.0, uniform(True)) and not streaks_matched(3.0, 4.0, 2.0, uniform(False))
+    assert asked == [True, False]
