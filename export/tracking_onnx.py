@@ -24,6 +24,10 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   (:mod:`models.tracking.compression`, for :func:`core.streak.streak_found`); with ``thresholds.streak_score``
   (null: off) and ``streak_match_px2`` the runtime matches streaks as :meth:`PointTracker._streak_matched_step`
   does, with ``core.streak.streak_blur``.
+- ``snr.onnx``: ``frame``, ``points`` (P >= 2, inside the frame) -> ``snr`` (1,), the points' median
+  signal-to-noise ratio (:meth:`PointTracker.signal_to_noise`); below ``thresholds.low_snr`` the runtime tracks
+  the sequence with ``init_low_snr.onnx`` and ``step_low_snr.onnx``, the graphs of the tracker's low-SNR twin
+  (Tukey windows, the level-0 patch size at every level; inputs and outputs as ``init`` and ``step``).
 
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
 difference and the lost flags that differ.
@@ -71,8 +75,19 @@ class InitGraph(nn.Module):
         self.tracker = tracker
 
     def forward(self, frame: Tensor, points: Tensor) -> tuple[Tensor, ...]:
-        state = self.tracker.init(frame, points)
+        state = self.tracker.init(frame, points, switch=False)
         return state.positions, state.lost, state.psr, state.psr_mean, *state.filters
+
+
+class SnrGraph(nn.Module):
+    """:meth:`PointTracker.signal_to_noise`: frame (1, 1, H, W), points (P, 2) -> (1,)."""
+
+    def __init__(self, tracker: PointTracker) -> None:
+        super().__init__()
+        self.tracker = tracker
+
+    def forward(self, frame: Tensor, points: Tensor) -> Tensor:
+        return self.tracker.signal_to_noise(frame, points)
 
 
 class StreakGraph(nn.Module):
@@ -102,7 +117,7 @@ def example_inputs(tracker: PointTracker, height: int, width: int, points: int, 
     frame = torch.nn.functional.interpolate(base, size=(height, width), mode="bicubic", align_corners=False)
     frame = frame + 10 * torch.rand(1, 1, height, width, generator=gen)
     pts = torch.rand(points, 2, generator=gen) * torch.tensor([width - 1.0, height - 1.0])
-    state = tracker.init(frame[0, 0], pts)
+    state = tracker.init(frame[0, 0], pts, switch=False)
     nxt = torch.roll(frame, (2, -3), (2, 3))
     psr_mean = 1 + 30 * torch.rand(points, generator=gen)
     return nxt, frame, state.positions, state.lost, psr_mean, *state.filters
@@ -133,6 +148,17 @@ def export_tracking_init(path: str | Path, tracker: PointTracker, height: int = 
                            dynamic_shapes=({2: h, 3: w}, {0: p}))
 
 
+def export_snr_graph(path: str | Path, tracker: PointTracker, height: int = 240, width: int = 320,
+                     points: int = 64) -> Path:
+    """Export :meth:`PointTracker.signal_to_noise` of ``tracker`` (``SnrGraph``) with dynamic H, W and P."""
+    frame, _, positions, *_ = example_inputs(tracker, height, width, points)
+    p = torch.export.Dim("points", min=2, max=MAX_POINTS)
+    h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
+    with torch.no_grad():
+        return export_onnx(SnrGraph(tracker), (frame, positions), path, ["frame", "points"], ["snr"],
+                           dynamic_shapes=({2: h, 3: w}, {0: p}))
+
+
 def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, width: int = 320) -> None:
     """Export ``profile.onnx``, ``streak.onnx`` (both dynamic H, W) and ``relative_blur.onnx`` into ``folder``
     (example frames of ``tracker``'s :func:`example_inputs`)."""
@@ -152,7 +178,8 @@ def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, w
 
 def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, width: int = 320) -> Path:
     """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``profile.onnx``,
-    ``relative_blur.onnx``, ``streak.onnx``, ``bundle.json``)."""
+    ``relative_blur.onnx``, ``streak.onnx``, ``snr.onnx``, ``init_low_snr.onnx``, ``step_low_snr.onnx``,
+    ``bundle.json``)."""
     if method not in METHODS:
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
     if not (MIN_SIZE <= height <= MAX_SIZE and MIN_SIZE <= width <= MAX_SIZE):
@@ -162,6 +189,9 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
         export_tracking_init(folder / "init.onnx", tracker, height, width)
         export_tracking_step(folder / "step.onnx", tracker, height, width)
         export_blur_graphs(folder, tracker, height, width)
+        export_snr_graph(folder / "snr.onnx", tracker, height, width)
+        export_tracking_init(folder / "init_low_snr.onnx", tracker.low_snr_tracker, height, width)
+        export_tracking_step(folder / "step_low_snr.onnx", tracker.low_snr_tracker, height, width)
         write_manifest(
             folder, "tracking", OPSET,
             input={"frame": "(1, 1, H, W) gray float32 in [0, 255]", "min_size": MIN_SIZE, "max_size": MAX_SIZE,
@@ -172,9 +202,13 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                         "fb_threshold_px": tracker.fb_threshold, "eta": tracker.eta,
                         "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match,
                         "streak_score": tracker.streak_score, "streak_match_px2": tracker.streak_match,
-                        "block_limit": tracker.block_limit, "block_psr_threshold": tracker.block_psr_threshold},
+                        "block_limit": tracker.block_limit, "block_psr_threshold": tracker.block_psr_threshold,
+                        "compression_reg": tracker.compression_reg, "low_snr": tracker.low_snr},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
-                      "search_sigmas": list(tracker.search_sigmas),
+                      "search_sigmas": list(tracker.search_sigmas), "window": tracker.window,
+                      "low_snr_patch_sizes": list(tracker.low_snr_tracker.sizes),
+                      "low_snr_bands": list(tracker.low_snr_tracker.bands),
+                      "low_snr_window": tracker.low_snr_tracker.window,
                       "good_features": {"quality": 0.01, "min_distance": 5}})
     return Path(out)
 

@@ -30,7 +30,7 @@ VERSION = 1
 #: The graphs of each task's bundle, ``<name>.onnx``.
 TASK_GRAPHS = {
     "triangulation": ("dogleg_start", "dogleg_start_shared", "dogleg_step"),
-    "tracking": ("init", "step", "profile", "relative_blur", "streak"),
+    "tracking": ("init", "step", "profile", "relative_blur", "streak", "snr", "init_low_snr", "step_low_snr"),
     "horizon": ("finder", "level", "segmenter", "matcher"),
     "vos": ("frame", "features", "init", "insert", "update"),
     "davos": ("features", "frame", "encode", "insert", "fit_init", "fit_update"),

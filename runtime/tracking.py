@@ -11,7 +11,9 @@ graphs measure how much blurrier each frame is than the one the filters were las
 the bundle's ``blur_match_px2`` the sharper view is blurred (``cv2.GaussianBlur``) before the search; where the
 ``streak`` graph finds straight motion blur (``core.streak.streak_found`` with the bundle's ``streak_score``) that
 changes by more than its ``streak_match_px2`` (``blur_match_px2`` where the streak reads the same in the frame's
-four quarters), each view is blurred by the other's streak instead. The tracks
+four quarters), each view is blurred by the other's streak instead. Where the ``snr`` graph reads the first frame's
+points (those inside it) with a median signal-to-noise ratio below the bundle's ``low_snr``, the whole sequence
+runs on the ``init_low_snr`` and ``step_low_snr`` graphs (``PointTracker.init``'s low-SNR twin). The tracks
 file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
 ``points``, ``method`` and ``frames``.
 """
@@ -69,6 +71,9 @@ class OnnxPointTracker:
         self.min_size, self.max_size = int(size["min_size"]), int(size["max_size"])
         self.init_graph, self.step_graph = self.bundle.graph("init"), self.bundle.graph("step")
         thresholds = self.bundle.section("thresholds")
+        self.low_snr = thresholds.get("low_snr")
+        self.snr_graph = self.bundle.graph("snr") if self.low_snr is not None else None
+        self._graph_pairs = {False: (self.init_graph, self.step_graph)}  # the low-SNR pair is loaded when needed
         self.blur_match = thresholds.get("blur_match_px2")
         self.streak_score = thresholds.get("streak_score") if self.blur_match is not None else None
         self.streak_match = thresholds.get("streak_match_px2")
@@ -97,6 +102,7 @@ class OnnxPointTracker:
         for t, frame in enumerate(frames):
             image = self._frame(frame, t)
             if previous is None:
+                self.init_graph, self.step_graph = self._graphs(self._low_snr(image, points))
                 positions, flags, scores, means, *filters = self.init_graph(image, points)
                 reference = last = self.profile_graph(image) if self.blur_match is not None else None
                 streak = self._streak(image)
@@ -127,6 +133,26 @@ class OnnxPointTracker:
             raise InputError("no frames to track")
         keep = slice(0, 1) if single else slice(None)
         return tuple(np.stack(a)[:, keep] for a in (tracks, lost, psr))  # type: ignore[return-value]
+
+    def _low_snr(self, image: np.ndarray, points: np.ndarray) -> bool:
+        """Whether the median signal-to-noise ratio of the ``points`` inside the (1, 1, H, W) first frame (the
+        ``snr`` graph, ``PointTracker.signal_to_noise``) is below the bundle's ``low_snr`` (never where that is
+        null or no point is inside)."""
+        if self.low_snr is None:
+            return False
+        height, width = image.shape[2:]
+        x, y = points[:, 0], points[:, 1]
+        inside = points[np.isfinite(points).all(1) & (x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1)]
+        if len(inside) == 0:
+            return False
+        inside = np.concatenate([inside, inside]) if len(inside) == 1 else inside  # the graph takes 2 or more
+        return float(self.snr_graph(image, inside)[0]) < self.low_snr
+
+    def _graphs(self, low_snr: bool) -> tuple:
+        """The init and step graphs of the tracker (``low_snr`` False) or of its low-SNR twin, each loaded once."""
+        if low_snr not in self._graph_pairs:
+            self._graph_pairs[low_snr] = (self.bundle.graph("init_low_snr"), self.bundle.graph("step_low_snr"))
+        return self._graph_pairs[low_snr]
 
     def _retrained(self, image: np.ndarray, positions: np.ndarray, flags: np.ndarray,
                    filters: list) -> tuple[np.ndarray, list]:

@@ -28,7 +28,7 @@ from models.dcf.mosse import (
 )
 from models.dcf.noise import ImageNoiseStd, image_noise_std
 from models.dcf.peak import response_peak
-from models.dcf.preprocess import DcfPreprocess, cosine_window, dcf_preprocess
+from models.dcf.preprocess import DcfPreprocess, cosine_window, dcf_preprocess, tukey_window
 from models.dcf.psr import PeakToSidelobeRatio, peak_to_sidelobe_ratio
 
 __all__ = [
@@ -56,4 +56,5 @@ __all__ = [
     "peak_to_sidelobe_ratio",
     "response_peak",
     "shift_fourier",
+    "tukey_window",
 ]

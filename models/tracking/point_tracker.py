@@ -5,7 +5,8 @@ Per frame: build a 4-level pyramid; from the coarsest level down, extract every 
 estimate (one gather for all points), correlate with that level's filter, find the peak (on the two finest
 levels weighted by a Gaussian prior around the coarser estimate) and add the scaled shift; the filters'
 regulariser grows with the frame's noise (estimated once per frame) against each patch's
-contrast, so frequencies that hold only noise in a blurred or dark patch do not move the peak. Points that leave
+contrast (the noise counts the error of block coding, where a frame shows an 8 px codec grid), so frequencies that
+hold only noise in a blurred, dark or compressed patch do not move the peak. Points that leave
 the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is weak, both against the frame's
 other points and against the point's own PSR history, and that either do not track back to where they came from
 (a forward-backward test on level 0) or whose unweighted level-0 peak lies elsewhere than the prior's choice (an
@@ -39,7 +40,11 @@ times that of KLT's uniform 21 px window for a 21 px patch and 1.13 times for a 
 the lower half of the frequencies (band-limited, as in C-COT) and their DFTs are real matrix
 products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation folded in; Newton
 refinement on the Fourier series runs where it sets the output (level 0), the coarser levels take the grid peak
-refined by a parabola. Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
+refined by a parabola. A sequence whose first frame is noisy (its points' median patch-to-noise variance ratio
+below ``low_snr``: dark, noisy or heavily compressed video) goes to a low-SNR twin of the tracker with Tukey
+windows (flat over the middle half: 0.94 times KLT's scatter per axis at 31 px) and 31 px patches at every level;
+on clean frames the Hann window is the more precise (a real scene's patch deforms and is occluded first at its
+border). Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
 so that each transform is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is
 applied to the spectrum (the mean as a multiple of the window's spectrum), so the pixel-sized arrays are only read,
 by two reductions and the transform.
@@ -73,12 +78,19 @@ from core.streak import (
     streak_uniform,
     streaks_matched,
 )
-from models.dcf import continuous_label, cosine_window, cubic_spline_fourier, gaussian_label, image_noise_std
+from models.dcf import (
+    continuous_label,
+    cosine_window,
+    cubic_spline_fourier,
+    gaussian_label,
+    image_noise_std,
+    tukey_window,
+)
 from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
-from models.tracking.compression import BLOCK, block_grid_ratio
+from models.tracking.compression import BLOCK, block_grid_ratio, compression_error_variance
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
 
@@ -95,6 +107,9 @@ _FINE_PATCH, _COARSE_PATCH = 31, 21  # px: default patch side at level 0 and at 
 _BAND = 0.5  # default fraction of each level's frequencies the filters keep (PointTracker's band)
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
 _BLOCK_LEVELS = 2  # the finest levels, on which an 8 px codec block spans more than 2 px (PointTracker's block_limit)
+WINDOWS = ("hann", "tukey")
+_TUKEY_TAPER = 0.5  # fraction of each patch axis in the tapers of the Tukey window (window "tukey")
+_LOW_SNR = 20.0  # default low_snr: median patch-to-noise variance ratio of a first frame tracked in low-SNR mode
 
 
 def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
@@ -185,7 +200,8 @@ class TrackerState:
     (:func:`~models.tracking.blur.radial_power_profile`) of the frame the filters were last trained afresh on and
     ``profile`` that of ``frame`` (None: not measured yet). With streak matching, ``streak`` is the straight motion
     blur ``(length px, angle rad)`` found in ``frame`` (None: none) and ``template`` the streaks that blur the views
-    the filters were last trained afresh on (:meth:`PointTracker._streak_matched_step`)."""
+    the filters were last trained afresh on (:meth:`PointTracker._streak_matched_step`). ``low_snr``: the
+    sequence is tracked by the low-SNR twin (:meth:`PointTracker.init`)."""
 
     frame: Tensor
     positions: Tensor
@@ -197,6 +213,7 @@ class TrackerState:
     profile: Tensor | None = None
     streak: Streak | None = None
     template: tuple[Streak, ...] = ()
+    low_snr: bool = False
 
 
 class PointTracker(nn.Module):
@@ -264,6 +281,22 @@ class PointTracker(nn.Module):
         and make the level-0 peaks, forward and backward, respond to the block grid, while the position comes
         from the coarser levels; so the usual floor and the tests on level 0 (against the frame, the point's
         history, the backward search and the prior's choice) there flag points that are still tracked.
+        window: the patch window, ``hann`` (:func:`~models.dcf.cosine_window`) or ``tukey``
+        (:func:`~models.dcf.tukey_window`, half of each axis tapered): flat over the middle, so more of the patch
+        counts fully, which lowers the scatter of the peak in noise (per axis 0.94 times that of KLT's uniform 21 px
+        window for a 31 px patch, against 1.13 for a Hann window of 31 px) and raises the weight of the patch's
+        border, where real scenes deform and occlude first.
+        compression_reg: weight of the compression error in the noise variance (:meth:`_noise_variance`): the error
+        of block coding (:func:`~models.tracking.compression.compression_error_variance`) counts this many times as
+        much as white noise of the same variance, since it lies where the signal is weak (the codec removes the
+        fine texture it cannot afford) rather than spread evenly over the frequencies.
+        low_snr: the median signal-to-noise ratio (level-0 patch variance over the noise variance,
+        :meth:`signal_to_noise`) of the first frame's points below which :meth:`init` hands the whole sequence to a
+        low-SNR twin of this tracker: the same settings with Tukey windows and 31 px patches at every level, the
+        largest windows it can afford. The start points of the shared real pairs read 64-8458 (29-529 at a quarter
+        of their contrast), of the first DAVIS frames 14-6480, under the stress sets' darkness or JPEG 15 1-9. The
+        default, 20, sends the latter and the two noisiest DAVIS videos (soccerball, mallard-fly) to the twin.
+        None: never.
     """
 
     def __init__(
@@ -289,10 +322,20 @@ class PointTracker(nn.Module):
         streak_match: float = 4.0,
         block_limit: float | None = 3.0,
         block_psr_threshold: float = 1.5,
+        window: str = "hann",
+        compression_reg: float = 3.0,
+        low_snr: float | None = _LOW_SNR,
     ) -> None:
         super().__init__()
         if method not in METHODS:
             raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
+        if window not in WINDOWS:
+            raise InputError(f"unknown patch window {window!r}; choose one of {', '.join(WINDOWS)}")
+        if not compression_reg >= 0:
+            raise InputError(f"compression_reg must be a non-negative weight, got {compression_reg}")
+        if low_snr is not None and not low_snr > 0:
+            raise InputError(f"low_snr must be a positive signal-to-noise ratio or None, got {low_snr}")
+        self.window, self.compression_reg, self.low_snr = window, compression_reg, low_snr
         if patch_size is None:
             patch_size = (_FINE_PATCH,) + (_COARSE_PATCH,) * (levels - 1)
         self.sizes = _per_level(patch_size, levels, "patch_size")
@@ -338,14 +381,17 @@ class PointTracker(nn.Module):
         self.bands = tuple(max(1, round(f * (n // 2))) for f, n in zip(fractions, self.sizes, strict=True))
         self.dfts = nn.ModuleList()
         for level, (n, m) in enumerate(zip(self.sizes, self.bands, strict=True)):
-            window = cosine_window((n,), dtype=torch.float64).roll(n // 2)  # natural order
+            if window == "hann":
+                taper = cosine_window((n,), dtype=torch.float64).roll(n // 2)  # natural order
+            else:
+                taper = tukey_window((n,), _TUKEY_TAPER, dtype=torch.float64).roll(n // 2)
             if method == "mosse":
                 scale = None
                 label = torch.fft.rfft2(gaussian_label((n, n), sigma, dtype=torch.float64)).real
             else:  # Fourier coefficients of the cubic-spline interpolated sample (eq. 3.6) and of the label
                 scale = cubic_spline_fourier(full_frequencies(n, None, torch.float64) / n) / n
                 label = continuous_label((n, n), sigma, dtype=torch.float64)
-            dft = RealDft2(n, window, scale, band=m)
+            dft = RealDft2(n, taper, scale, band=m)
             self.dfts.append(dft)
             label = label[band_index(n, m), : m + 1, None].transpose(1, 2)
             self.register_buffer(f"label_{level}", label.float(), persistent=False)  # (2M + 1, 1, M + 1)
@@ -363,6 +409,14 @@ class PointTracker(nn.Module):
                 shift = band_frequencies(n, n // 2, False).float()  # signed shifts 0, 1, .., -1 of an N-map
                 prior = torch.exp(-(shift[:, None].square() + shift.square()) / (2 * self.search_sigmas[level] ** 2))
                 self.register_buffer(f"search_prior_{level}", prior[:, None, :], persistent=False)
+        # the low-SNR twin: the same settings with Tukey windows and the level-0 patch size at every level
+        self.low_snr_tracker = None if low_snr is None else PointTracker(
+            method, levels, self.sizes[0], sigma=sigma, eta=eta, reg_rel=reg_rel, newton_iterations=newton_iterations,
+            search_sigma=search_sigma, psr_threshold=psr_threshold, psr_relative=psr_relative, psr_rate=psr_rate,
+            psr_recover=psr_recover, fb_threshold=fb_threshold, psr_exclude=psr_exclude, band=band,
+            noise_reg=noise_reg, blur_match=blur_match, streak_score=streak_score, streak_match=streak_match,
+            block_limit=block_limit, block_psr_threshold=block_psr_threshold, window="tukey",
+            compression_reg=compression_reg, low_snr=None)
 
     def _sample(self, image: Tensor, centres: Tensor, level: int) -> tuple[Tensor, Tensor, Tensor]:
         """Band-limited spectrum (real, imaginary ``(2M + 1, P, M + 1)``) of the normalised (zero mean, unit
@@ -385,12 +439,33 @@ class PointTracker(nn.Module):
         return (zr - mean * dr) * scale, (zi - mean * di) * scale, std
 
     def _noise_variance(self, frame: Tensor) -> Tensor | None:
-        """Variance ``(1,)`` of the white noise of a ``(1, 1, H, W)`` frame (:func:`~models.dcf.image_noise_std` on
-        every 4th pixel), at least the 8-bit rounding's; None when ``noise_reg`` is 0. Estimated on the frame, not
-        on the coarser pyramid levels, where texture has become as fine as noise."""
+        """Variance ``(1,)`` of the noise of a ``(1, 1, H, W)`` frame: the white noise
+        (:func:`~models.dcf.image_noise_std` on every 4th pixel), at least the 8-bit rounding's, plus
+        ``compression_reg`` times the compression error
+        (:func:`~models.tracking.compression.compression_error_variance`; frames of at least two 8 px blocks a
+        side); None when ``noise_reg`` is 0. Estimated on the frame, not on the coarser pyramid levels, where
+        texture has become as fine as noise."""
         if self.noise_reg == 0:
             return None
-        return image_noise_std(frame, stride=4).square().clamp_min(_QUANTISATION_VAR)
+        variance = image_noise_std(frame, stride=4).square().clamp_min(_QUANTISATION_VAR)
+        if self.compression_reg > 0 and min(frame.shape[-2:]) >= 2 * BLOCK:
+            variance = variance + self.compression_reg * compression_error_variance(frame)
+        return variance
+
+    def signal_to_noise(self, frame: Tensor, points: Tensor) -> Tensor:
+        """Median signal-to-noise ratio ``(1,)`` of the points ``(P, 2)`` in a ``(1, 1, H, W)`` frame: the variance
+        of each point's level-0 patch (``patch_size[0]`` px, as :meth:`_sample` measures it) over the frame's noise
+        variance (:meth:`_noise_variance`, at least the 8-bit rounding's; inf when ``noise_reg`` is 0: no noise
+        model)."""
+        noise = self._noise_variance(frame)
+        if noise is None:
+            return torch.full((1,), math.inf, dtype=frame.dtype, device=frame.device)
+        x = extract_patches(frame, points, self.sizes[0])
+        count = x.shape[0] * x.shape[2]
+        mean = x.sum(0).sum(1) / count
+        ratio = (x.square().sum(0).sum(1) / count - mean.square()).clamp_min(0) / noise
+        # the lower median (as torch.median) by topk, which exports to ONNX
+        return ratio.topk((ratio.shape[0] + 1) // 2, largest=False).values[-1:]
 
     @staticmethod
     def _noise_power(variance: Tensor | None, std: Tensor, level: int) -> Tensor | None:
@@ -409,6 +484,17 @@ class PointTracker(nn.Module):
             raise InputError(f"a frame must be (H, W) or (1, 1, H, W) gray, got shape {tuple(frame.shape)}")
         return frame
 
+    @staticmethod
+    def _points(points: Tensor, frame: Tensor) -> Tensor:
+        """Start points as a ``(P, 2)`` tensor of ``frame``'s dtype and device; ``InputError`` for another shape or
+        none."""
+        points = torch.as_tensor(points, dtype=frame.dtype, device=frame.device)
+        if points.dim() != 2 or points.shape[1] != 2:
+            raise InputError(f"points must have shape (P, 2), got {tuple(points.shape)}")
+        if points.shape[0] == 0:
+            raise InputError("the point set is empty: nothing to track")
+        return points
+
     def _inside(self, positions: Tensor, frame: Tensor) -> Tensor:
         h, w = frame.shape[-2:]
         x, y = positions[:, 0], positions[:, 1]
@@ -422,20 +508,25 @@ class PointTracker(nn.Module):
         new = torch.stack([zr * y, -zi * y, zr.square() + zi.square()])
         return new if filters is None else _lerp(filters, new, eta[:, None])
 
-    def init(self, frame: Tensor, points: Tensor) -> TrackerState:
+    def init(self, frame: Tensor, points: Tensor, switch: bool = True) -> TrackerState:
         """Train every point's filters on ``frame`` ``(H, W)``; points ``(P, 2)`` outside the image start
-        lost."""
-        state = self._train(self._frame(frame), points)
+        lost. Where the median signal-to-noise ratio of the points inside (:meth:`signal_to_noise`) is below
+        ``low_snr`` and ``switch`` is on, the low-SNR twin (Tukey windows, the level-0 patch size at every level)
+        takes the sequence: its state says so (``low_snr``) and :meth:`step` hands it on. ``switch`` False (and an
+        exported graph, whose runtime decides with a graph of its own) keeps this tracker's filters."""
+        frame = self._frame(frame)
+        points = self._points(points, frame)
+        if switch and self.low_snr_tracker is not None and not _exporting():
+            inside = points[self._inside(points, frame)]
+            if len(inside) and float(self.signal_to_noise(frame, inside)) < self.low_snr:
+                return replace(self.low_snr_tracker.init(frame, points), low_snr=True)
+        state = self._train(frame, points)
         streak = self._streak(state.frame)
         return replace(state, streak=streak, template=(streak,) if streak else ())
 
     def _train(self, frame: Tensor, points: Tensor) -> TrackerState:
         """:meth:`init` on a ``(1, 1, H, W)`` frame, without measuring its motion blur."""
-        points = torch.as_tensor(points, dtype=frame.dtype, device=frame.device)
-        if points.dim() != 2 or points.shape[1] != 2:
-            raise InputError(f"points must have shape (P, 2), got {tuple(points.shape)}")
-        if points.shape[0] == 0:
-            raise InputError("the point set is empty: nothing to track")
+        points = self._points(points, frame)
         lost = ~self._inside(points, frame)
         positions = torch.where(lost.unsqueeze(-1), torch.zeros_like(points), points)
         pyramid = image_pyramid(frame, self.levels)
@@ -632,6 +723,8 @@ class PointTracker(nn.Module):
     def step(self, frame: Tensor, state: TrackerState, compile: bool = False) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``; ``compile``: run :meth:`forward` through
         ``torch.compile`` (see :meth:`track`)."""
+        if state.low_snr:
+            return replace(self.low_snr_tracker.step(frame, replace(state, low_snr=False), compile), low_snr=True)
         forward = self._compiled() if compile else self
         frame = self._frame(frame)
         if self.blur_match is None:

@@ -33,6 +33,15 @@ def test_step_and_init_graphs_match_pytorch(tracking_bundle) -> None:
     assert bundle.section("settings")["method"] == "ccot" and bundle.section("thresholds")["psr_threshold"] == 2.5
 
 
+def test_snr_graph_matches_pytorch(tracking_bundle) -> None:
+    snr, tracker = Bundle(tracking_bundle, "tracking").graph("snr"), PointTracker("ccot").eval()
+    for height, width, points in ((96, 128, 8), (150, 200, 41)):
+        frame, _, positions, *_ = example_inputs(tracker, height, width, points, seed=4)
+        want = tracker.signal_to_noise(frame, positions)
+        np.testing.assert_allclose(snr(frame.numpy(), positions.numpy()), want.numpy(), rtol=1e-4)
+    assert Bundle(tracking_bundle, "tracking").section("thresholds")["low_snr"] == tracker.low_snr
+
+
 def test_parity_on_the_synthetic_sequence(tracking_bundle) -> None:
     error, flags = parity(tracking_bundle, frames=4, points=50)
     assert error < 0.01 and flags == 0

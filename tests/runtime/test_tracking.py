@@ -1,7 +1,7 @@
 """The runtime's point tracker: its command, run without torch, against the PyTorch tracker on the same frames
 and start points (tracks within 0.01 px, the same lost flags), through blur and motion-blur changes too, OpenCV's
-start points, a lone point, a point that an occluder hides and uncovers, frames compressed into flat blocks,
-frames that do not fit the bundle."""
+start points, a lone point, a point that an occluder hides and uncovers, frames compressed into flat blocks, a
+noisy sequence on the low-SNR graphs, frames that do not fit the bundle."""
 
 import cv2
 import numpy as np
@@ -17,7 +17,7 @@ from models.tracking.blur import radial_power_profile, relative_blur
 from models.tracking.compression import block_grid_ratio
 from models.tracking.motion_blur import motion_blur_streak
 from runtime.tracking import OnnxPointTracker, good_features
-from tests.models.tracking.test_point_tracker import _smooth_image, _translate
+from tests.models.tracking.test_point_tracker import _noisy_sequence, _smooth_image, _translate
 
 pytestmark = pytest.mark.slow  # uses an exported bundle
 
@@ -162,3 +162,21 @@ def test_a_lost_point_comes_back_as_in_pytorch(tracking_bundle, blur) -> None:
     assert np.abs(tracks - ref[0].numpy()).max() < 0.01
     np.testing.assert_allclose(psr[1:], ref[2][1:].numpy(), rtol=1e-3)
     assert lost[2:4, 0].all() and lost[-1, 0] == bool(blur)  # back unless the blur hides it from its old filters
+
+
+def test_a_noisy_sequence_runs_on_the_low_snr_graphs_as_in_pytorch(tracking_bundle) -> None:
+    """Noise of std 20 on a moving texture: the ``snr`` graph sends the sequence to the low-SNR pair of graphs, as
+    PyTorch hands it to its twin (checked), and both track alike; a clean first frame stays on the usual pair."""
+    frames, points, _ = _noisy_sequence(20.0)
+    images, start = [f.float().numpy() for f in frames], points.float().numpy()
+    reference = PointTracker("ccot")
+    assert reference.init(torch.from_numpy(images[0]), torch.from_numpy(start)).low_snr
+    tracker = OnnxPointTracker(tracking_bundle, threads=1)
+    tracks, lost, _ = tracker.track(images, start)
+    assert tracker.step_graph is tracker._graphs(True)[1]
+    ref_tracks, ref_lost, _ = reference.track([torch.from_numpy(f) for f in images], torch.from_numpy(start))
+    np.testing.assert_array_equal(lost, ref_lost.numpy())
+    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+    clean, _, _ = _noisy_sequence(0.0)
+    tracker.track([f.float().numpy() for f in clean[:2]], start)
+    assert tracker.step_graph is tracker._graphs(False)[1]

@@ -1,5 +1,6 @@
 """Block-grid ratio of compressed frames: equal to a loop over the pixel pairs, about 1 without compression,
-growing as the JPEG quality falls, batched, bad input refused."""
+growing as the JPEG quality falls, batched, bad input refused. Compression error variance: the variance of known
+per-block errors, close to JPEG's true error, none without a grid."""
 
 import cv2
 import numpy as np
@@ -7,7 +8,7 @@ import pytest
 import torch
 
 from core.errors import InputError
-from models.tracking.compression import BlockGridRatio, block_grid_ratio
+from models.tracking.compression import BlockGridRatio, block_grid_ratio, compression_error_variance
 from tests.models.tracking.test_blur import textured
 
 
@@ -61,3 +62,33 @@ def test_bad_input():
         block_grid_ratio(torch.zeros(1, 3, 32, 32))
     with pytest.raises(InputError, match="2 blocks"):
         block_grid_ratio(torch.zeros(1, 1, 12, 32))
+
+
+@pytest.mark.parametrize("error_std", [2.0, 5.0, 10.0])
+def test_error_variance_of_known_block_errors(error_std):
+    """A smooth scene plus an independent Gaussian offset per 8 x 8 block: the variance of the offsets."""
+    rng = np.random.default_rng(int(error_std))
+    scene = 128 + 0.1 * (textured(240, 320, 3) - 128)
+    image = scene + np.kron(rng.normal(0, error_std, (30, 40)), np.ones((8, 8)))
+    got = compression_error_variance(torch.from_numpy(image)[None, None])
+    assert got.shape == (1,)
+    assert got.item() ** 0.5 == pytest.approx(error_std, rel=0.1)
+
+
+def test_error_variance_follows_the_jpeg_error():
+    image = textured(240, 320, 4)
+    for quality in (15, 5):
+        compressed = _jpeg(image, quality)
+        true_std = (compressed - image.clip(0, 255).round()).std()
+        got = compression_error_variance(torch.from_numpy(compressed)[None, None]).item() ** 0.5
+        assert 0.5 * true_std < got < 1.5 * true_std, (quality, got, true_std)
+    # no grid, or one of chance strength (quality 95): nothing
+    for frame in (image, _jpeg(image, 95)):
+        assert compression_error_variance(torch.from_numpy(frame)[None, None]).item() == 0
+
+
+def test_error_variance_bad_input():
+    with pytest.raises(InputError, match="compression_error_variance expects"):
+        compression_error_variance(torch.zeros(1, 3, 32, 32))
+    with pytest.raises(InputError, match="2 blocks"):
+        compression_error_variance(torch.zeros(1, 1, 32, 12))
