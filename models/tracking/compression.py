@@ -51,11 +51,18 @@ def _border_and_inside(steps: Tensor, block: int) -> tuple[Tensor, Tensor]:
     return border.mean(-1), inside
 
 
-def _axis_ratio(steps: Tensor, block: int) -> Tensor:
-    """Mean of ``steps`` ``(B, N - 1)`` at the block borders over their mean elsewhere, ``(B,)``; 1 where no step
-    is larger than a rounding error."""
-    border, inside = _border_and_inside(steps, block)
-    return (border + 1e-6) / (inside + 1e-6)
+def block_grid(image: Tensor, block: int = BLOCK, name: str = "block_grid") -> tuple[Tensor, Tensor]:
+    """:func:`block_grid_ratio` and :func:`compression_error_variance` of ``(B, 1, H, W)`` images from one pass
+    over their pixel steps, each ``(B,)`` (``name``: the function named in an input error)."""
+    _check(image, block, name)
+    ratios, variance = [], 0
+    for steps in _steps(image):
+        border, inside = _border_and_inside(steps, block)
+        ratios.append((border + 1e-6) / (inside + 1e-6))  # 1 where no step is larger than a rounding error
+        variance = variance + math.pi / 8 * (border.square() - inside.square()).clamp_min(0)  # mean of 2 axes
+    ratio = (ratios[0] + ratios[1]) / 2
+    low, high = GRID_RAMP
+    return ratio, variance * ((ratio - low) / (high - low)).clamp(0, 1)
 
 
 def block_grid_ratio(image: Tensor, block: int = BLOCK) -> Tensor:
@@ -68,9 +75,7 @@ def block_grid_ratio(image: Tensor, block: int = BLOCK) -> Tensor:
         ``(B,)`` the mean over both axes of (mean absolute step across the block borders) / (mean absolute step
         between the other neighbouring pixels): about 1 without compression, larger with.
     """
-    _check(image, block, "block_grid_ratio")
-    columns, rows = _steps(image)
-    return (_axis_ratio(columns, block) + _axis_ratio(rows, block)) / 2
+    return block_grid(image, block, "block_grid_ratio")[0]
 
 
 def compression_error_variance(image: Tensor, block: int = BLOCK) -> Tensor:
@@ -90,14 +95,7 @@ def compression_error_variance(image: Tensor, block: int = BLOCK) -> Tensor:
     Returns:
         ``(B,)`` variance; 0 for a frame without a grid.
     """
-    _check(image, block, "compression_error_variance")
-    variance, ratio = 0, 0
-    for steps in _steps(image):
-        border, inside = _border_and_inside(steps, block)
-        variance = variance + math.pi / 8 * (border.square() - inside.square()).clamp_min(0)  # mean of 2 axes
-        ratio = ratio + (border + 1e-6) / (inside + 1e-6) / 2
-    low, high = GRID_RAMP
-    return variance * ((ratio - low) / (high - low)).clamp(0, 1)
+    return block_grid(image, block, "compression_error_variance")[1]
 
 
 class BlockGridRatio(torch.nn.Module):

@@ -90,7 +90,7 @@ from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
-from models.tracking.compression import BLOCK, block_grid_ratio, compression_error_variance
+from models.tracking.compression import BLOCK, block_grid, block_grid_ratio, compression_error_variance
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
 
@@ -429,27 +429,35 @@ class PointTracker(nn.Module):
         leaves of it is rounding: its spectrum is set to zero, so its filter scores nothing and the point is
         lost."""
         x = extract_patches(image, centres, self.sizes[level])
-        count = x.shape[0] * x.shape[2]
-        mean = x.sum(0).sum(1) / count  # over the outer axis first: much faster than over both at once
-        std = (x.square().sum(0).sum(1) / count - mean.square()).clamp_min(0).sqrt()
+        mean, variance = self._moments(x)
+        std = variance.sqrt()
         flat = std <= 1e-3 * (mean.abs() + 1)
         scale = torch.where(flat, torch.zeros_like(std), 1 / (std + 1e-5))[:, None]
         mean = mean[:, None]
         (dr, di), (zr, zi) = getattr(self, f"mean_spectrum_{level}"), self.dfts[level](x)
         return (zr - mean * dr) * scale, (zi - mean * di) * scale, std
 
-    def _noise_variance(self, frame: Tensor) -> Tensor | None:
+    @staticmethod
+    def _moments(x: Tensor) -> tuple[Tensor, Tensor]:
+        """Mean and variance ``(P,)`` of point-interleaved patches ``(n, P, n)`` (sums over the outer axis first:
+        much faster than over both at once)."""
+        count = x.shape[0] * x.shape[2]
+        mean = x.sum(0).sum(1) / count
+        return mean, (x.square().sum(0).sum(1) / count - mean.square()).clamp_min(0)
+
+    def _noise_variance(self, frame: Tensor, compression: Tensor | None = None) -> Tensor | None:
         """Variance ``(1,)`` of the noise of a ``(1, 1, H, W)`` frame: the white noise
         (:func:`~models.dcf.image_noise_std` on every 4th pixel), at least the 8-bit rounding's, plus
         ``compression_reg`` times the compression error
         (:func:`~models.tracking.compression.compression_error_variance`; frames of at least two 8 px blocks a
-        side); None when ``noise_reg`` is 0. Estimated on the frame, not on the coarser pyramid levels, where
-        texture has become as fine as noise."""
+        side; ``compression``: that error when already measured); None when ``noise_reg`` is 0. Estimated on the
+        frame, not on the coarser pyramid levels, where texture has become as fine as noise."""
         if self.noise_reg == 0:
             return None
         variance = image_noise_std(frame, stride=4).square().clamp_min(_QUANTISATION_VAR)
         if self.compression_reg > 0 and min(frame.shape[-2:]) >= 2 * BLOCK:
-            variance = variance + self.compression_reg * compression_error_variance(frame)
+            compression = compression_error_variance(frame) if compression is None else compression
+            variance = variance + self.compression_reg * compression
         return variance
 
     def signal_to_noise(self, frame: Tensor, points: Tensor) -> Tensor:
@@ -460,10 +468,7 @@ class PointTracker(nn.Module):
         noise = self._noise_variance(frame)
         if noise is None:
             return torch.full((1,), math.inf, dtype=frame.dtype, device=frame.device)
-        x = extract_patches(frame, points, self.sizes[0])
-        count = x.shape[0] * x.shape[2]
-        mean = x.sum(0).sum(1) / count
-        ratio = (x.square().sum(0).sum(1) / count - mean.square()).clamp_min(0) / noise
+        ratio = self._moments(extract_patches(frame, points, self.sizes[0]))[1] / noise
         # the lower median (as torch.median) by topk, which exports to ONNX
         return ratio.topk((ratio.shape[0] + 1) // 2, largest=False).values[-1:]
 
@@ -572,10 +577,13 @@ class PointTracker(nn.Module):
             positions, lost, psr ``(P,)``, psr_mean and the filters after this frame.
         """
         pyramid = image_pyramid(frame, self.levels)
-        noise = self._noise_variance(frame)
+        # the block grid's strength and the compression error, from one pass over the frame's pixel steps
+        measured = min(frame.shape[-2:]) >= 2 * BLOCK and (self.block_limit is not None or self.compression_reg > 0)
+        ratio, compression = block_grid(frame) if measured else (None, None)
+        noise = self._noise_variance(frame, compression)
         start = torch.where(torch.isfinite(positions), positions, torch.zeros_like(positions))  # lost: where frozen
         d = torch.zeros_like(positions)
-        fine_weight = self._fine_weight(frame)
+        fine_weight = self._fine_weight(frame, ratio)
         spectra, centres = [], []
         for level in reversed(range(self.levels)):
             centre = (start + d + 0.5) / 2**level - 0.5
@@ -687,15 +695,17 @@ class PointTracker(nn.Module):
         inv = 1 / (b + regulariser)
         return torch.cat([(ar * zr - ai * zi) * inv, (ar * zi + ai * zr) * inv], -1)
 
-    def _fine_weight(self, frame: Tensor) -> Tensor | float:
+    def _fine_weight(self, frame: Tensor, ratio: Tensor | None = None) -> Tensor | float:
         """Weight of the corrections of the levels on which a codec block spans more than 2 px (levels 0 and 1,
         never the coarsest): 1, or 0 in a frame ``(1, 1, H, W)`` whose 8 px compression grid is stronger than
         ``block_limit`` (:func:`~models.tracking.compression.block_grid_ratio`). There the blocks are nearly flat
         inside and step at their borders, and that is the structure these levels' filters match; the coarser
-        levels, on which a block is at most 2 px, give the better estimate."""
+        levels, on which a block is at most 2 px, give the better estimate. ``ratio``: the frame's block-grid ratio
+        when already measured."""
         if self.block_limit is None or min(frame.shape[-2:]) < 2 * BLOCK:  # too small to measure
             return 1.0
-        return (block_grid_ratio(frame) <= self.block_limit).to(frame.dtype)
+        ratio = block_grid_ratio(frame) if ratio is None else ratio
+        return (ratio <= self.block_limit).to(frame.dtype)
 
     def _lost_threshold(self, psr: Tensor, lost: Tensor) -> Tensor:
         """The PSR below which a point's peak is weak in this frame: ``psr_relative`` times the geometric mean PSR
