@@ -12,7 +12,9 @@ real photographs seen through chains of small homographies under growing defocus
 darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file
 stem>``, 6 frames; the conditions ``stress_dark`` etc. put every frame under a photometric stress condition
 instead; ``--homography-cameras moving fixed`` adds the same sets seen by a fixed camera, as the Oxford
-sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs only those) and real videos without
+sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs only those), real sequences with known
+homographies from their first frame, such as the Oxford sets or HPatches themselves (``--homography-folder DIR ...``,
+:mod:`data.flow.homography_folder`, named ``homography_folder_<parent>_<folder>``) and real videos without
 ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named ``roundtrip_<folder>``:
 ``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on, every ``--roundtrip-stride``-th (default 1;
 more: faster real motion), then the same frames in reverse order back to the first, so every point's truth at the
@@ -27,9 +29,10 @@ dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px)
 hid some points (``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep
 their last position for the EPE statistics and never count as inliers. With KLT in the run, ``summary`` (JSON; the
 table's last lines) counts per group of rows (``pairs``: the ``--sintel`` folders, ``pairs_<condition>``,
-``synthetic``, ``stress``, ``homography[_fixed]_<condition>``, ``roundtrip[_<condition>]``) and over ``all`` of them
-the rows where each other method has at least KLT's inlier fraction and at most its mean inlier EPE (a KLT row
-without inliers counts as beaten on precision), names the rows it loses and gives every method's means.
+``synthetic``, ``stress``, ``homography[_fixed]_<condition>``, ``homography_folder``, ``roundtrip[_<condition>]``)
+and over ``all`` of them the rows where each other method has at least KLT's inlier fraction and at most its mean
+inlier EPE (a KLT row without inliers counts as beaten on precision), names the rows it loses and gives every
+method's means.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
@@ -73,6 +76,7 @@ from data.flow import (
     STRESS_CONDITIONS,
     degrade,
     homography_sequence,
+    read_homography_folder,
     read_sintel_sequence,
     stress_frames,
     stress_sequence,
@@ -166,6 +170,14 @@ def homography_dataset(image: str | Path, condition: str, n_points: int, seed: i
         seq.frames = stress_frames(seq.frames, stress, seed)
     frames_u8, points, tracks, valid = _tracked(seq, n_points, spacing)
     return Dataset(frames_u8, points, tracks[-1], valid[-1])
+
+
+def homography_folder_dataset(folder: str | Path, n_points: int, spacing: int = 3) -> Dataset:
+    """A real sequence with known homographies from its first frame (:func:`data.flow.read_homography_folder`:
+    the Oxford sets' or HPatches' layout), ground truth at the last frame (points that stay 6 px inside every
+    frame)."""
+    frames, points, tracks, valid = _tracked(read_homography_folder(folder), n_points, spacing)
+    return Dataset(frames, points, tracks[-1], valid[-1])
 
 
 def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing: int = 3, condition: str = "none",
@@ -540,6 +552,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--homography-cameras", nargs="+", choices=("moving", "fixed"), default=["moving"],
                         help="moving: the chained homographies; fixed: the same frames' degradation with a camera "
                         "that does not move (as in the Oxford sets), rows named homography_fixed_<condition>_...")
+    parser.add_argument("--homography-folder", nargs="+", action="extend", default=[], metavar="DIR",
+                        help="real sequences with known homographies from their first frame (Oxford layout "
+                        "img1.ppm + H1to2p ..., or HPatches 1.ppm + H_1_2 ...); repeat or list several")
     parser.add_argument("--roundtrip", nargs="+", action="extend", default=[], metavar="DIR",
                         help="real video frame folders to track forward and back to the first frame")
     parser.add_argument("--roundtrip-frames", type=int, default=12,
@@ -601,6 +616,10 @@ def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[s
                 datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing,
                                                     moving=camera == "moving")
                 groups[name] = group
+    for folder in args.homography_folder:
+        path = Path(folder)
+        name = f"homography_folder_{path.parent.name}_{path.name}"
+        datasets[name], groups[name] = homography_folder_dataset(path, args.points, args.spacing), "homography_folder"
     for condition in args.roundtrip_conditions if args.roundtrip else []:
         group = "_".join(["roundtrip", *([condition] if condition != "none" else [])])
         for folder in args.roundtrip:

@@ -134,6 +134,42 @@ def test_homography_rows_per_image_and_condition(tmp_path, capsys):
     assert "missing.png" in capsys.readouterr().err  # a clear error, no traceback
 
 
+def test_homography_folder_rows_match_the_generated_sequence(tmp_path, capsys):
+    """``--homography-folder DIR``: a generated homography sequence written in the Oxford layout (frames and
+    ``H1tokp`` files) gives the dataset that :func:`homography_dataset` builds from the image itself (frames, start
+    points, truth, valid), one row ``homography_folder_<parent>_<folder>`` in the group ``homography_folder``; a
+    missing folder is refused with its name."""
+    import cv2
+
+    from data.flow import homography_sequence
+
+    rng = np.random.default_rng(4)
+    texture = cv2.GaussianBlur(rng.normal(128, 40, (96, 128)), (0, 0), 1.5).clip(0, 255).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "img.png"), texture)
+    seq = homography_sequence(texture.astype(np.float32), "jpeg", 6, 1)
+    folder = tmp_path / "oxford" / "ubc"
+    folder.mkdir(parents=True)
+    for k, (frame, h) in enumerate(zip(seq.frames, seq.homographies, strict=True), start=1):
+        cv2.imwrite(str(folder / f"img{k}.png"), frame.astype(np.uint8))
+        if k > 1:
+            np.savetxt(folder / f"H1to{k}p", h)
+    expected = point_tracking.homography_dataset(tmp_path / "img.png", "jpeg", 40, seed=1)
+    read = point_tracking.homography_folder_dataset(folder, 40)
+    np.testing.assert_array_equal(read.frames, expected.frames)
+    np.testing.assert_array_equal(read.points, expected.points)
+    np.testing.assert_allclose(read.truth, expected.truth, atol=1e-9)
+    np.testing.assert_array_equal(read.valid, expected.valid)
+    argv = ["--homography-folder", str(folder), "--points", "40", "--methods", "ccot", "klt", "--repeats", "1",
+            "--json"]
+    assert point_tracking.main(argv) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out["datasets"]) == {"homography_folder_oxford_ubc"}
+    assert out["summary"]["homography_folder"]["rows"] == 1
+    assert out["datasets"]["homography_folder_oxford_ubc"]["frames"] == 6
+    assert point_tracking.main(["--homography-folder", str(tmp_path / "nowhere"), "--json"]) == 2
+    assert "nowhere" in capsys.readouterr().err
+
+
 def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
     """``--roundtrip DIR``: ``--roundtrip-frames`` frames (from ``start``, every ``stride``-th), then back to the
     first; the truth at the last frame is the start; too short a video, too few frames, a negative start or a
