@@ -24,6 +24,7 @@ from torch import Tensor, nn
 
 from core.errors import InputError
 from models.dcf.noise import image_noise_std
+from models.export_mode import exporting
 from models.tracking.blur import symmetric_hann
 
 _MAD_TO_STD = 1.482602218505602  # std of a normal distribution over its median absolute deviation
@@ -38,6 +39,34 @@ def _search_offsets(min_length: float, max_length: int) -> tuple[Tensor, Tensor]
     radius2 = dy * dy + dx * dx
     keep = (radius2 >= min_length**2) & (radius2 <= max_length**2) & ((dy > 0) | (dx > 0))
     return torch.from_numpy(dy[keep]), torch.from_numpy(dx[keep])
+
+
+def _dft_matrices(n: int, columns: int, like: Tensor) -> tuple[Tensor, Tensor]:
+    """``cos`` and ``sin`` of ``2 pi k m / n`` for ``k < n``, ``m < columns``: ``(n, columns)`` of ``like``'s dtype,
+    the phase ``k m mod n`` taken in integers so that the angles are exact for any ``n``."""
+    k = torch.arange(n, device=like.device)
+    period = k[-1:] + 1  # n as a tensor: an exported graph takes the remainder by a tensor, not a symbolic size
+    angle = ((k[:, None] * k[:columns]) % period).to(like.dtype) * (2 * math.pi / n)
+    return angle.cos(), angle.sin()
+
+
+def _cepstrum_by_products(image: Tensor, noise: Tensor, columns: int) -> Tensor:
+    """Power cepstrum ``(B, H, columns)`` (columns ``0 .. columns - 1``, ``columns <= W // 2 + 1``) of centred,
+    windowed images ``(B, H, W)`` with ``noise`` ``(B,)`` added to the power, as matrix products: the values of
+    the FFT path of :func:`motion_blur_streak` (``rfft2`` of the log power, real part). The power spectrum of a
+    real image is even, so its columns ``0 .. W // 2`` hold it all; the others enter the cepstrum's sum by
+    doubling the columns that have a mirror."""
+    h, w = image.shape[-2:]
+    half = w // 2 + 1
+    cos_h, sin_h = _dft_matrices(h, h, image)
+    cos_w, sin_w = _dft_matrices(w, half, image)
+    re, im = image @ cos_w, image @ sin_w  # along rows: X (cos - i sin), imaginary part negated
+    power = (cos_h @ re - sin_h @ im).square() + (sin_h @ re + cos_h @ im).square()
+    v = torch.arange(half, device=image.device)
+    mirrored = 2 - (v == 0).to(image.dtype) - (2 * v == w).to(image.dtype)  # columns 0 and W / 2 are their own
+    log_power = torch.log(power + noise[:, None, None]) * mirrored
+    cos_c, sin_c = cos_w[:half, :columns], sin_w[:half, :columns]  # frequency v to cepstrum column x
+    return cos_h @ (log_power @ cos_c) - sin_h @ (log_power @ sin_c)
 
 
 def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int = MAX_LENGTH, noise_stride: int = 4,
@@ -69,19 +98,24 @@ def motion_blur_streak(image: Tensor, min_length: float = 4.4, max_length: int =
     h, w = image.shape[-2:]
     window = symmetric_hann(h, image)[:, None] * symmetric_hann(w, image)
     mean = (image * window).sum((-2, -1), keepdim=True) / window.sum()
-    spectrum = torch.fft.fft2(((image - mean) * window)[:, 0])  # full: the log power is transformed as a real image
     noise = image_noise_std(image, noise_stride).square().clamp_min(1 / 12) * window.square().sum()
-    power = spectrum.real.square() + spectrum.imag.square()
     # the power cepstrum: the log power is real and even, so its inverse DFT is the real part of its forward DFT
     # over H W, read at columns 0 .. W // 2 (the rest by the same symmetry); the scale does not change the score
-    cepstrum = torch.fft.rfft2(torch.log(power + noise[:, None, None])).real.flatten(1)  # (B, H (W // 2 + 1))
-    half = w // 2 + 1
+    centred = ((image - mean) * window)[:, 0]
+    if exporting():  # onnxruntime's DFT of a length that is not a power of 2 is a slow direct sum
+        cepstrum = _cepstrum_by_products(centred, noise, max_length + 2)
+    else:
+        spectrum = torch.fft.fft2(centred)  # full: the log power is transformed as a real image
+        power = spectrum.real.square() + spectrum.imag.square()
+        cepstrum = torch.fft.rfft2(torch.log(power + noise[:, None, None])).real  # (B, H, W // 2 + 1)
+    columns_kept = cepstrum.shape[-1]
+    cepstrum = cepstrum.flatten(1)
     dy, dx = (v.to(image.device) for v in _search_offsets(min_length, max_length))
 
     def read(rows: Tensor, columns: Tensor) -> Tensor:  # offsets within one period; C(-y, -x) = C(y, x)
         flip = columns < 0
         rows, columns = torch.where(flip, -rows, rows), torch.where(flip, -columns, columns)
-        return cepstrum.gather(1, torch.where(rows < 0, rows + h, rows) * half + columns)
+        return cepstrum.gather(1, torch.where(rows < 0, rows + h, rows) * columns_kept + columns)
 
     values = read(*(v.expand(image.shape[0], -1) for v in (dy[None], dx[None])))  # (B, K)
     k = values.shape[1]

@@ -89,6 +89,7 @@ from models.dcf import (
 from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
+from models.export_mode import exporting
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
 from models.tracking.compression import BLOCK, block_grid, block_grid_ratio, compression_error_variance
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
@@ -130,14 +131,10 @@ def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
     return pyramid
 
 
-def _exporting() -> bool:
-    return torch.compiler.is_exporting() or torch.onnx.is_in_onnx_export()
-
-
 def _lerp(start: Tensor, end: Tensor, weight: Tensor) -> Tensor:
     """``torch.lerp`` (one fused kernel) in eager mode; ``start + weight (end - start)`` in an exported graph, where
     ``lerp`` becomes a broadcast ``Where`` over two branches that onnxruntime runs several times slower."""
-    return start + weight * (end - start) if _exporting() else torch.lerp(start, end, weight)
+    return start + weight * (end - start) if exporting() else torch.lerp(start, end, weight)
 
 
 def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
@@ -162,7 +159,7 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     frac = (centres - corner)[None, :, :, None]  # (1, P, 2, 1)
     padded = F.pad(image, (r, r + 1, r, r + 1), mode="replicate")[0, 0]  # pixel (x, y) at (x + r, y + r)
     x0, y0 = corner.long().unbind(-1)
-    if _exporting():
+    if exporting():
         # ONNX: one Gather with flat indices (as_strided has no ONNX equivalent); the same values. index_select
         # exports as Gather, which onnxruntime runs several times faster than the GatherND of advanced indexing
         offsets = torch.arange(n, device=centres.device)
@@ -521,7 +518,7 @@ class PointTracker(nn.Module):
         exported graph, whose runtime decides with a graph of its own) keeps this tracker's filters."""
         frame = self._frame(frame)
         points = self._points(points, frame)
-        if switch and self.low_snr_tracker is not None and not _exporting():
+        if switch and self.low_snr_tracker is not None and not exporting():
             inside = points[self._inside(points, frame)]
             if len(inside) and float(self.signal_to_noise(frame, inside)) < self.low_snr:
                 return replace(self.low_snr_tracker.init(frame, points), low_snr=True)
@@ -661,7 +658,7 @@ class PointTracker(nn.Module):
         :meth:`_backward_error`; ``noise``: the frames' noise variance, :meth:`_noise_variance`). Eager runs test
         only the weak points (a few per cent, so the test costs almost nothing); an exported graph, whose shapes
         cannot depend on the data, tests all of them. Both give the same flags."""
-        if _exporting() or torch.compiler.is_compiling():
+        if exporting() or torch.compiler.is_compiling():
             return weak & ~(self._backward_error(previous, start, zr, zi, noise) <= self.fb_threshold)
         index = weak.nonzero()[:, 0]
         miss = self._backward_error(previous, start[index], zr[:, index], zi[:, index], noise)
@@ -751,7 +748,7 @@ class PointTracker(nn.Module):
         the frame is too small to measure and while the graph of :meth:`init` is being exported (the runtime
         measures streaks with a graph of their own)."""
         too_small = min(frame.shape[-2:]) <= 2 * MAX_LENGTH
-        if self.streak_score is None or self.blur_match is None or too_small or _exporting():
+        if self.streak_score is None or self.blur_match is None or too_small or exporting():
             return None
         length, angle, score, rival = motion_blur_streak(frame).double()[0].tolist()
         # only a candidate streak needs the block grid (the lattice test); without one streak_found is False anyway

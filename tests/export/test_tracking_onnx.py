@@ -1,13 +1,16 @@
-"""The tracking bundle: its step and init graphs match PyTorch in onnxruntime at other frame sizes and point
-counts than exported, its manifest, bad export arguments."""
+"""The tracking bundle: its step, init, snr and streak graphs match PyTorch in onnxruntime at other frame sizes and
+point counts than exported, its manifest, bad export arguments."""
 
+import cv2
 import numpy as np
 import pytest
 import torch
 
 from core.errors import InputError
+from core.streak import streak_blur
 from export.tracking_onnx import example_inputs, export_bundle, parity
 from models.tracking import PointTracker
+from models.tracking.motion_blur import motion_blur_streak
 from runtime.bundle import Bundle
 
 pytestmark = pytest.mark.slow  # ONNX export
@@ -40,6 +43,18 @@ def test_snr_graph_matches_pytorch(tracking_bundle) -> None:
         want = tracker.signal_to_noise(frame, positions)
         np.testing.assert_allclose(snr(frame.numpy(), positions.numpy()), want.numpy(), rtol=1e-4)
     assert Bundle(tracking_bundle, "tracking").section("thresholds")["low_snr"] == tracker.low_snr
+
+
+def test_streak_graph_matches_pytorch(tracking_bundle) -> None:
+    """The streak graph (its cepstrum as matrix products) against PyTorch's FFTs, at sizes other than exported,
+    odd ones too, with a streak and without."""
+    graph = Bundle(tracking_bundle, "tracking").graph("streak")
+    rng = np.random.default_rng(5)
+    for height, width, length in ((97, 131, 9.0), (150, 203, 0.0), (120, 176, 14.0)):
+        texture = cv2.GaussianBlur(rng.normal(128, 40, (height, width)), (0, 0), 1.0).astype(np.float32)
+        frame = streak_blur(texture, length, 0.6) if length else texture
+        want = motion_blur_streak(torch.from_numpy(frame)[None, None])[0].numpy()
+        np.testing.assert_allclose(graph(frame[None, None])[0, :4], want, rtol=1e-3, atol=1e-3)
 
 
 def test_parity_on_the_synthetic_sequence(tracking_bundle) -> None:

@@ -1,6 +1,6 @@
 """The straight motion blur of a frame from its power cepstrum: known streaks recovered in length and direction
-despite noise and a translation, no streak found in sharp, defocused or (heavily) compressed frames, batches, bad
-input."""
+despite noise and a translation, no streak found in sharp, defocused or (heavily) compressed frames, batches, the
+exported graph's matrix-product cepstrum against the FFTs, bad input."""
 
 import cv2
 import numpy as np
@@ -9,6 +9,7 @@ import torch
 
 from core.errors import InputError
 from core.streak import streak_blur, streak_found
+from models.tracking import motion_blur
 from models.tracking.motion_blur import MotionBlurStreak, motion_blur_streak
 from tests.models.tracking.test_blur import textured
 
@@ -54,6 +55,29 @@ def test_batches_and_module():
     for i in range(2):
         torch.testing.assert_close(together[i], motion_blur_streak(batch[i : i + 1])[0])
     torch.testing.assert_close(MotionBlurStreak()(batch), together)
+
+
+@pytest.mark.parametrize(("h", "w"), [(64, 80), (63, 81), (150, 203)])
+def test_cepstrum_by_products_equals_the_ffts(h, w):
+    """The power cepstrum of the exported graph (matrix products, only the columns read) against ``rfft2`` of the
+    log of ``fft2``'s power, in float64, at even and odd sizes."""
+    image = torch.randn(2, h, w, dtype=torch.float64, generator=torch.Generator().manual_seed(h))
+    noise = torch.tensor([0.5, 20.0], dtype=torch.float64)
+    spectrum = torch.fft.fft2(image)
+    want = torch.fft.rfft2(torch.log(spectrum.real.square() + spectrum.imag.square() + noise[:, None, None])).real
+    got = motion_blur._cepstrum_by_products(image, noise, 26)
+    assert got.shape == (2, h, 26)
+    torch.testing.assert_close(got, want[..., :26], rtol=0, atol=1e-9 * float(want.abs().max()))
+
+
+def test_export_path_reads_the_same_streak(monkeypatch):
+    """:func:`motion_blur_streak` with the export path's cepstrum gives the eager path's reading, streak or none."""
+    frames = [_camera(streak_blur(_textured(150, 203, 3), 11.0, 0.7), 1), _camera(_textured(97, 131, 4), 2)]
+    want = [motion_blur_streak(f) for f in frames]
+    monkeypatch.setattr(motion_blur, "exporting", lambda: True)
+    for frame, reading in zip(frames, want, strict=True):
+        torch.testing.assert_close(motion_blur_streak(frame), reading, rtol=1e-3, atol=1e-3)
+    assert want[0][0, 2] < -10 < want[1][0, 2]  # the first has a streak, the second none
 
 
 def test_bad_input():
