@@ -656,13 +656,15 @@ class PointTracker(nn.Module):
     ) -> Tensor:
         """``weak`` ``(P,)`` and-ed with a forward-backward miss above ``fb_threshold`` (see
         :meth:`_backward_error`; ``noise``: the frames' noise variance, :meth:`_noise_variance`). Eager runs test
-        only the weak points (a few per cent, so the test costs almost nothing); an exported graph, whose shapes
-        cannot depend on the data, tests all of them. Both give the same flags."""
-        if exporting() or torch.compiler.is_compiling():
+        only the weak points (a few per cent, so the test costs almost nothing), and so does an exported graph
+        (a shape that depends on the data); a compiled step, which would break its graph there, tests all of
+        them. All give the same flags. Point 0 is always among those tested (its flag masked by ``weak``), so that
+        the set is never empty, which onnxruntime's scatter does not take."""
+        if torch.compiler.is_compiling() and not exporting():
             return weak & ~(self._backward_error(previous, start, zr, zi, noise) <= self.fb_threshold)
-        index = weak.nonzero()[:, 0]
+        index = torch.cat([weak.nonzero()[:, 0], torch.zeros(1, dtype=torch.long, device=weak.device)])
         miss = self._backward_error(previous, start[index], zr[:, index], zi[:, index], noise)
-        return weak.index_put((index,), ~(miss <= self.fb_threshold))
+        return weak & torch.zeros_like(weak).index_put((index,), ~(miss <= self.fb_threshold))
 
     def _backward_error(
         self, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor, noise: Tensor | None = None

@@ -129,21 +129,27 @@ def test_backward_error_is_the_distance_of_a_wrong_match(miss):
 
 
 def test_backward_test_on_the_weak_points_only_equals_the_test_on_all(monkeypatch):
-    """Eager runs search back only for the weak points; the exported graph searches back for every point and
-    and-s: the same flags, also with no weak point at all."""
+    """Eager runs and exported graphs search back only for the weak points (and point 0); a compiled step searches
+    back for every point and and-s: the flags of the test on every point, also with no weak point at all and with
+    point 0 weak or not."""
     tracker = PointTracker("ccot")
     gen = torch.Generator().manual_seed(0)
     previous = torch.rand(1, 1, 96, 128, generator=gen) * 255
     start = torch.rand(40, 2, generator=gen) * torch.tensor([127.0, 95.0])
-    shape = (tracker.dfts[0].rows_f, 40, tracker.dfts[0].k)
-    zr, zi = torch.randn(shape, generator=gen), torch.randn(shape, generator=gen)
-    for weak in (torch.rand(40, generator=gen) < 0.3, torch.zeros(40, dtype=torch.bool)):
-        eager = tracker._fails_backward(weak, previous, start, zr, zi)
-        monkeypatch.setattr(torch.compiler, "is_exporting", lambda: True)
-        exported = tracker._fails_backward(weak, previous, start, zr, zi)
-        monkeypatch.undo()
-        assert torch.equal(eager, exported) and not (eager & ~weak).any()
-    assert eager.sum() == 0 and exported.sum() == 0
+    zr, zi, _ = tracker._sample(previous, start, 0)  # samples at the start: they track back home
+    wrong = torch.arange(40) % 3 == 0  # these samples are noise: they track back elsewhere
+    noise_shape = zr[:, wrong].shape
+    zr[:, wrong], zi[:, wrong] = torch.randn(noise_shape, generator=gen), torch.randn(noise_shape, generator=gen)
+    misses = ~(tracker._backward_error(previous, start, zr, zi) <= tracker.fb_threshold)  # every point, one batch
+    assert 0 < misses.sum() < 40
+    some = torch.rand(40, generator=gen) < 0.3
+    for weak in (some, some | misses, torch.zeros(40, dtype=torch.bool), torch.ones(40, dtype=torch.bool)):
+        for mode in ("eager", "exporting", "compiling"):
+            if mode != "eager":
+                monkeypatch.setattr(torch.compiler, "is_compiling", lambda: True)
+                monkeypatch.setattr(torch.compiler, "is_exporting", lambda m=mode: m == "exporting")
+            assert torch.equal(tracker._fails_backward(weak, previous, start, zr, zi), weak & misses), (mode, weak)
+            monkeypatch.undo()
 
 
 def test_weak_peak_threshold_is_relative_to_the_geometric_mean_psr():
