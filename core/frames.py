@@ -42,16 +42,11 @@ def read_frames(spec: str | Path, limit: int | None = None) -> tuple[list[np.nda
     """Gray frames ``(H, W)`` float32 in [0, 255] of a folder or glob, all of one size, and their paths (the first
     ``limit`` only, if given)."""
     paths = frame_paths(spec)[:limit]
-    return read_frame_files(paths), paths
-
-
-def read_frame_files(paths: list[Path]) -> list[np.ndarray]:
-    """Gray frames ``(H, W)`` float32 in [0, 255] of image files that must all have one size."""
     frames = [read_frame_gray(p) for p in paths]
     for path, frame in zip(paths, frames, strict=True):
         if frame.shape != frames[0].shape:
             raise InputError(f"frame {path} has size {frame.shape}, {paths[0]} has {frames[0].shape}")
-    return frames
+    return frames, paths
 
 
 def read_points(path: str | Path) -> np.ndarray:

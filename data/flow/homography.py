@@ -38,20 +38,24 @@ _MARGIN = 6.0  # px a valid point keeps from the frame border
 
 @dataclass
 class HomographySequence:
-    """Frames ``(T, H, W)`` float32 in [0, 255] and homographies ``(T, 3, 3)`` from frame 0 to each frame."""
+    """Frames ``(T, H, W)`` float32 in [0, 255] and homographies ``(T, 3, 3)`` from frame 0 to each frame;
+    ``sizes`` ``(T, 2)`` (height, width): each frame's own size where smaller frames were padded at the bottom and
+    right to one size (None: every frame is ``(H, W)``)."""
 
     frames: np.ndarray
     homographies: np.ndarray
+    sizes: np.ndarray | None = None
 
     def track(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Ground truth of frame-0 points ``(P, 2)`` (x, y): tracks ``(T, P, 2)`` and valid ``(T, P)`` (inside every
-        frame so far, ``6`` px from the border)."""
+        frame so far, ``6`` px from the border of its own size)."""
         points = np.asarray(points, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 2:
             raise InputError(f"points must have shape (P, 2), got {points.shape}")
         homogeneous = np.concatenate([points, np.ones((len(points), 1))], 1) @ self.homographies.transpose(0, 2, 1)
         tracks = homogeneous[..., :2] / homogeneous[..., 2:]
-        h, w = self.frames.shape[1:]
+        sizes = np.broadcast_to(self.frames.shape[1:], (len(self.frames), 2)) if self.sizes is None else self.sizes
+        h, w = sizes[:, :1], sizes[:, 1:]  # (T, 1) against the tracks' (T, P)
         x, y = tracks[..., 0], tracks[..., 1]
         inside = (x >= _MARGIN) & (x <= w - 1 - _MARGIN) & (y >= _MARGIN) & (y <= h - 1 - _MARGIN)
         return tracks, np.logical_and.accumulate(inside, axis=0)

@@ -6,6 +6,7 @@ JPEG compression (``ubc``) and light (``leuven``, HPatches' ``i_*``) whose groun
 A frame's index is the last number in its file name; the lowest is the reference frame ``r``, and every other
 frame ``k`` needs a homography file from ``r`` to ``k``, named ``H{r}to{k}p``, ``H{r}to{k}`` or ``H_{r}_{k}``
 (optionally ``.txt``): 3 x 3 numbers in rows, mapping a point ``x`` of frame ``r`` to ``H x`` in frame ``k``.
+Frames of different sizes are padded to the largest (:func:`read_homography_folder`).
 """
 
 from __future__ import annotations
@@ -13,10 +14,11 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from core.errors import InputError
-from core.frames import frame_paths, read_frame_files
+from core.frames import frame_paths, read_frame_gray
 from data.flow.homography import HomographySequence
 
 
@@ -51,9 +53,11 @@ def _index(path: Path) -> int:
 
 def read_homography_folder(folder: str | Path) -> HomographySequence:
     """Frames ``(T, H, W)`` (gray, float32 in [0, 255], ordered by index) and homographies ``(T, 3, 3)`` from the
-    first frame to each (the first the identity) of a folder in the layout of the module docstring.
-    ``InputError`` names the folder or file: no folder, fewer than 2 frames, two frames of one index, frames of
-    different sizes, a missing or malformed homography file."""
+    first frame to each (the first the identity) of a folder in the layout of the module docstring. Frames of
+    different sizes (HPatches has some) are padded at the bottom and right, their borders repeated, to the largest;
+    the sequence's ``sizes`` keep their own, so that a point is valid only inside its frame. ``InputError`` names
+    the folder or file: no folder, fewer than 2 frames, two frames of one index, a missing or malformed homography
+    file."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"homography folder not found: {folder}")
@@ -71,4 +75,9 @@ def read_homography_folder(folder: str | Path) -> HomographySequence:
             raise InputError(f"{folder}: no homography from frame {indices[0]} to frame {index} "
                              f"(looked for {', '.join(names)})")
         homographies.append(read_homography(found[0]))
-    return HomographySequence(np.stack(read_frame_files(paths)), np.stack(homographies))
+    frames = [read_frame_gray(p) for p in paths]
+    sizes = np.array([f.shape for f in frames])
+    height, width = sizes.max(0)
+    padded = [cv2.copyMakeBorder(f, 0, int(height) - f.shape[0], 0, int(width) - f.shape[1], cv2.BORDER_REPLICATE)
+              for f in frames]
+    return HomographySequence(np.stack(padded), np.stack(homographies), None if (sizes == sizes[0]).all() else sizes)

@@ -1,5 +1,6 @@
 """Homography folders (Oxford and HPatches layouts): frames in index order, homographies from the first frame that
-map its content where it is (checked by resampling the frames and against OpenCV), bad folders refused by name."""
+map its content where it is (checked by resampling the frames and against OpenCV), frames of different sizes padded
+with their own bounds kept, bad folders refused by name."""
 
 import cv2
 import numpy as np
@@ -84,21 +85,38 @@ def test_read_homography_scales_and_refuses(tmp_path):
             read_homography(tmp_path / name)
 
 
-@pytest.mark.parametrize("case", ["missing", "one_frame", "no_homography", "bad_homography", "sizes", "twice",
-                                  "no_index"])
+def test_frames_of_different_sizes_are_padded_and_keep_their_own_bounds(tmp_path):
+    """A smaller frame is padded at the bottom and right (its border repeated) to the largest size; a point is
+    valid only 6 px inside its own frame, not in the padding."""
+    frames = _write(tmp_path / "v", ["1.png", "2.png", "3.png"], ["H_1_2", "H_1_3"])
+    small = frames[2, :70, :100]
+    cv2.imwrite(str(tmp_path / "v" / "3.png"), small)
+    seq = read_homography_folder(tmp_path / "v")
+    assert seq.frames.shape == (3, 90, 120)
+    np.testing.assert_array_equal(seq.frames[2, :70, :100], small)
+    np.testing.assert_array_equal(seq.frames[2, 70:, :100], np.broadcast_to(small[-1], (20, 100)))
+    np.testing.assert_array_equal(seq.frames[2, :, 100:], np.broadcast_to(seq.frames[2, :, 99:100], (90, 20)))
+    np.testing.assert_array_equal(seq.sizes, [[90, 120], [90, 120], [70, 100]])
+    points = np.random.default_rng(2).uniform([8, 8], [112, 82], (400, 2))
+    tracks, valid = seq.track(points)
+    x, y = tracks[2, :, 0], tracks[2, :, 1]
+    inside_small = (x >= 6) & (x <= 99 - 6) & (y >= 6) & (y <= 69 - 6)
+    np.testing.assert_array_equal(valid[2], valid[1] & inside_small)
+    assert valid[1].sum() > valid[2].sum() > 0
+
+
+@pytest.mark.parametrize("case", ["missing", "one_frame", "no_homography", "bad_homography", "twice", "no_index"])
 def test_bad_folders_are_refused_by_name(tmp_path, case):
     folder = tmp_path / case
     if case != "missing":
         names = ["img1.png"] if case == "one_frame" else ["img1.png", "img2.png", "img3.png"]
         _write(folder, names, [] if case == "one_frame" else ["H1to2p", "H1to3p"])
     expected = {"missing": "not found", "one_frame": "at least 2 frames", "no_homography": "H1to3p, H1to3p.txt",
-                "bad_homography": "H1to2p", "sizes": "img3.png", "twice": "share an index", "no_index": "first.png"}
+                "bad_homography": "H1to2p", "twice": "share an index", "no_index": "first.png"}
     if case == "no_homography":
         (folder / "H1to3p").unlink()
     elif case == "bad_homography":
         (folder / "H1to2p").write_text("1 0 0\n0 1 0\n")
-    elif case == "sizes":
-        cv2.imwrite(str(folder / "img3.png"), np.zeros((40, 50), np.uint8))
     elif case == "twice":
         cv2.imwrite(str(folder / "1.png"), np.zeros((90, 120), np.uint8))
     elif case == "no_index":
