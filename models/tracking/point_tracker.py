@@ -658,13 +658,16 @@ class PointTracker(nn.Module):
         :meth:`_backward_error`; ``noise``: the frames' noise variance, :meth:`_noise_variance`). Eager runs test
         only the weak points (a few per cent, so the test costs almost nothing), and so does an exported graph
         (a shape that depends on the data); a compiled step, which would break its graph there, tests all of
-        them. All give the same flags. Point 0 is always among those tested (its flag masked by ``weak``), so that
-        the set is never empty, which onnxruntime's scatter does not take."""
+        them. All give the same flags. One spare search (the last point's, its flag written to a slot past the
+        points and dropped) keeps the set from being empty, which onnxruntime's scatter does not take."""
         if torch.compiler.is_compiling() and not exporting():
             return weak & ~(self._backward_error(previous, start, zr, zi, noise) <= self.fb_threshold)
-        index = torch.cat([weak.nonzero()[:, 0], torch.zeros(1, dtype=torch.long, device=weak.device)])
-        miss = self._backward_error(previous, start[index], zr[:, index], zi[:, index], noise)
-        return weak & torch.zeros_like(weak).index_put((index,), ~(miss <= self.fb_threshold))
+        points = torch.arange(weak.shape[0], device=weak.device)
+        index = torch.cat([weak.nonzero()[:, 0], points[-1:] + 1])  # the weak points and the spare slot P
+        source = index.clamp_max(weak.shape[0] - 1)
+        miss = self._backward_error(previous, start[source], zr[:, source], zi[:, source], noise)
+        flags = weak.new_zeros(weak.shape[0] + 1).index_put((index,), ~(miss <= self.fb_threshold))
+        return flags[:-1]
 
     def _backward_error(
         self, previous: Tensor, start: Tensor, zr: Tensor, zi: Tensor, noise: Tensor | None = None

@@ -129,9 +129,9 @@ def test_backward_error_is_the_distance_of_a_wrong_match(miss):
 
 
 def test_backward_test_on_the_weak_points_only_equals_the_test_on_all(monkeypatch):
-    """Eager runs and exported graphs search back only for the weak points (and point 0); a compiled step searches
-    back for every point and and-s: the flags of the test on every point, also with no weak point at all and with
-    point 0 weak or not."""
+    """Eager runs and exported graphs search back only for the weak points (and one spare search); a compiled step
+    searches back for every point and and-s: the flags of the test on every point, also with no weak point at all
+    and with the last point (the spare search's) weak or not."""
     tracker = PointTracker("ccot")
     gen = torch.Generator().manual_seed(0)
     previous = torch.rand(1, 1, 96, 128, generator=gen) * 255
