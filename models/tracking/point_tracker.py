@@ -662,8 +662,8 @@ class PointTracker(nn.Module):
         points and dropped) keeps the set from being empty, which onnxruntime's scatter does not take."""
         if torch.compiler.is_compiling() and not exporting():
             return weak & ~(self._backward_error(previous, start, zr, zi, noise) <= self.fb_threshold)
-        points = torch.arange(weak.shape[0], device=weak.device)
-        index = torch.cat([weak.nonzero()[:, 0], points[-1:] + 1])  # the weak points and the spare slot P
+        spare = torch.arange(weak.shape[0], device=weak.device)[-1:] + 1  # slot P, as a tensor (P is symbolic)
+        index = torch.cat([weak.nonzero()[:, 0], spare])  # the weak points and the spare slot
         source = index.clamp_max(weak.shape[0] - 1)
         miss = self._backward_error(previous, start[source], zr[:, source], zi[:, source], noise)
         flags = weak.new_zeros(weak.shape[0] + 1).index_put((index,), ~(miss <= self.fb_threshold))
