@@ -323,6 +323,7 @@ class PointTracker(nn.Module):
         compression_reg: float = 3.0,
         low_snr: float | None = _LOW_SNR,
     ) -> None:
+        settings = {name: value for name, value in locals().items() if name not in ("self", "__class__")}
         super().__init__()
         if method not in METHODS:
             raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
@@ -408,12 +409,7 @@ class PointTracker(nn.Module):
                 self.register_buffer(f"search_prior_{level}", prior[:, None, :], persistent=False)
         # the low-SNR twin: the same settings with Tukey windows and the level-0 patch size at every level
         self.low_snr_tracker = None if low_snr is None else PointTracker(
-            method, levels, self.sizes[0], sigma=sigma, eta=eta, reg_rel=reg_rel, newton_iterations=newton_iterations,
-            search_sigma=search_sigma, psr_threshold=psr_threshold, psr_relative=psr_relative, psr_rate=psr_rate,
-            psr_recover=psr_recover, fb_threshold=fb_threshold, psr_exclude=psr_exclude, band=band,
-            noise_reg=noise_reg, blur_match=blur_match, streak_score=streak_score, streak_match=streak_match,
-            block_limit=block_limit, block_psr_threshold=block_psr_threshold, window="tukey",
-            compression_reg=compression_reg, low_snr=None)
+            **{**settings, "patch_size": self.sizes[0], "window": "tukey", "low_snr": None})
 
     def _sample(self, image: Tensor, centres: Tensor, level: int) -> tuple[Tensor, Tensor, Tensor]:
         """Band-limited spectrum (real, imaginary ``(2M + 1, P, M + 1)``) of the normalised (zero mean, unit
@@ -580,7 +576,7 @@ class PointTracker(nn.Module):
         noise = self._noise_variance(frame, compression)
         start = torch.where(torch.isfinite(positions), positions, torch.zeros_like(positions))  # lost: where frozen
         d = torch.zeros_like(positions)
-        fine_weight = self._fine_weight(frame, ratio)
+        fine_weight = self._fine_weight(ratio)
         spectra, centres = [], []
         for level in reversed(range(self.levels)):
             centre = (start + d + 0.5) / 2**level - 0.5
@@ -697,17 +693,16 @@ class PointTracker(nn.Module):
         inv = 1 / (b + regulariser)
         return torch.cat([(ar * zr - ai * zi) * inv, (ar * zi + ai * zr) * inv], -1)
 
-    def _fine_weight(self, frame: Tensor, ratio: Tensor | None = None) -> Tensor | float:
+    def _fine_weight(self, ratio: Tensor | None) -> Tensor | float:
         """Weight of the corrections of the levels on which a codec block spans more than 2 px (levels 0 and 1,
-        never the coarsest): 1, or 0 in a frame ``(1, 1, H, W)`` whose 8 px compression grid is stronger than
-        ``block_limit`` (:func:`~models.tracking.compression.block_grid_ratio`). There the blocks are nearly flat
-        inside and step at their borders, and that is the structure these levels' filters match; the coarser
-        levels, on which a block is at most 2 px, give the better estimate. ``ratio``: the frame's block-grid ratio
-        when already measured."""
-        if self.block_limit is None or min(frame.shape[-2:]) < 2 * BLOCK:  # too small to measure
+        never the coarsest): 1, or 0 in a frame whose 8 px compression grid is stronger than ``block_limit``
+        (``ratio``: the frame's :func:`~models.tracking.compression.block_grid_ratio`; None where it was not
+        measured, a frame under two blocks a side: 1). There the blocks are nearly flat inside and step at their
+        borders, and that is the structure these levels' filters match; the coarser levels, on which a block is at
+        most 2 px, give the better estimate."""
+        if self.block_limit is None or ratio is None:
             return 1.0
-        ratio = block_grid_ratio(frame) if ratio is None else ratio
-        return (ratio <= self.block_limit).to(frame.dtype)
+        return (ratio <= self.block_limit).to(ratio.dtype)
 
     def _lost_threshold(self, psr: Tensor, lost: Tensor) -> Tensor:
         """The PSR below which a point's peak is weak in this frame: ``psr_relative`` times the geometric mean PSR

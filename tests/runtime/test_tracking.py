@@ -134,8 +134,8 @@ def test_a_blocked_frame_as_in_pytorch(tracking_bundle) -> None:
                    for f in images[1:3]]
     images = [f.astype(np.float32) for f in images]
     tracker = PointTracker("ccot")
-    weights = [float(tracker._fine_weight(torch.from_numpy(f)[None, None])) for f in images]
-    assert weights == [1.0, 0.0, 0.0, 1.0]
+    blocked = [float(block_grid_ratio(torch.from_numpy(f)[None, None])) > tracker.block_limit for f in images]
+    assert blocked == [False, True, True, False]
     start = np.random.default_rng(3).uniform([10, 10], [118, 86], (40, 2))
     tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
     ref_tracks, ref_lost, _ = tracker.track([torch.from_numpy(f) for f in images], torch.from_numpy(start).float())

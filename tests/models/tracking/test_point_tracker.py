@@ -697,3 +697,21 @@ def test_window_and_low_snr_settings_are_checked():
             PointTracker("ccot", low_snr=value)
     with pytest.raises(InputError, match="compression_reg"):
         PointTracker("ccot", compression_reg=-1.0)
+
+
+def test_the_low_snr_twin_keeps_every_other_setting():
+    """The twin of a tracker with every setting off its default differs only in window, patch sizes and low_snr:
+    each stored setting, each level's label (sigma) and band fraction are the parent's."""
+    settings = dict(method="mosse", levels=3, sigma=1.5, eta=0.05, reg_rel=0.02, newton_iterations=(1, 1, 0),
+                    search_sigma=(2.0, 0.0, 0.0), psr_threshold=3.0, psr_relative=0.4, psr_rate=0.5, psr_recover=0.8,
+                    fb_threshold=2.0, psr_exclude=5, band=0.6, noise_reg=10.0, blur_match=None, streak_score=-5.0,
+                    streak_match=3.0, block_limit=4.0, block_psr_threshold=1.0, compression_reg=1.0)
+    tracker = PointTracker(**settings, patch_size=(31, 21, 21), low_snr=50.0)
+    twin = tracker.low_snr_tracker
+    assert (twin.window, twin.sizes, twin.low_snr, twin.low_snr_tracker) == ("tukey", (31, 31, 31), None, None)
+    names = ("method", "levels", "eta", "reg_rel", "newton", "search_sigmas", "psr_threshold", "psr_relative",
+             "psr_rate", "psr_recover", "fb_threshold", "psr_exclude", "noise_reg", "blur_match", "streak_score",
+             "streak_match", "block_limit", "block_psr_threshold", "compression_reg")
+    assert {n: getattr(twin, n) for n in names} == {n: getattr(tracker, n) for n in names}
+    assert twin.bands == (9, 9, 9)  # 0.6 of 15 at every level
+    torch.testing.assert_close(twin.label_0, tracker.label_0, rtol=0, atol=0)
