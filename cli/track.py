@@ -13,11 +13,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", required=True, help="folder of frames (sorted by name) or a glob like 'clip/*.png'")
     start = p.add_mutually_exclusive_group(required=True)
     start.add_argument("--points", help="start points in the first frame: .npy/.npz (P, 2) or text 'x y' lines")
-    start.add_argument("--detect", type=int, help="detect this many good features to track in the first frame")
+    start.add_argument("--detect", type=int, help="detect this many good features to track in the first frame "
+                       "(OpenCV's Shi-Tomasi corners, quality 0.01, 5 px apart; the same with --onnx)")
     p.add_argument("--method", default="ccot", choices=("ccot", "ccot_ff", "mosse", "klt"),
                    help="DCF variant, or klt = OpenCV pyramidal Lucas-Kanade (default: ccot)")
     p.add_argument("--onnx", metavar="DIR", help="track with this tracking bundle in the torch-free runtime "
-                   "(runtime.tracking; its method, OpenCV's good features for --detect) instead of PyTorch")
+                   "(runtime.tracking; its method, the same --detect points) instead of PyTorch")
     p.add_argument("--out", required=True, help="output .npz with tracks (T, P, 2), lost (T, P), psr (T, P)")
     p.add_argument("--video", help="also write an overlay video (.mp4)")
     p.add_argument("--device", default="cpu", help="torch device for the DCF methods (default: cpu)")

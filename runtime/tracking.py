@@ -33,6 +33,7 @@ from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import writable_folder, write_npz
 from core.frames import read_frames, read_points
+from core.good_features import good_features
 from core.streak import (
     Streak,
     quarter_slices,
@@ -43,18 +44,6 @@ from core.streak import (
     streaks_matched,
 )
 from runtime.bundle import Bundle, add_runtime_arguments
-
-
-def good_features(frame: np.ndarray, count: int, quality: float = 0.01, min_distance: float = 5) -> np.ndarray:
-    """Up to ``count`` Shi-Tomasi corners (``cv2.goodFeaturesToTrack``) of a gray frame (H, W), strongest first,
-    as (P, 2) (x, y) float64; ``InputError`` when there are none."""
-    if count < 1:
-        raise InputError(f"--detect needs a positive number of points, got {count}")
-    gray = np.clip(np.asarray(frame), 0, 255).round().astype(np.uint8)
-    corners = cv2.goodFeaturesToTrack(gray, count, quality, min_distance)
-    if corners is None:
-        raise InputError("no good features to track in the first frame (is it blank?)")
-    return corners.reshape(-1, 2).astype(np.float64)
 
 
 class OnnxPointTracker:

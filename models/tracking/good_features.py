@@ -1,5 +1,9 @@
 """Good features to track (Shi and Tomasi 1994): minimum-eigenvalue corner response, non-maximum suppression
 in a window of ``min_distance`` pixels, a quality threshold relative to the best corner, strongest first.
+
+The benchmark's start points (``bench/point_tracking.py``; its recorded figures use them). The window suppression
+keeps fewer corners than OpenCV's distance rule; ``infer.py track`` and the runtime detect with OpenCV
+(:func:`core.good_features.good_features`).
 """
 
 from __future__ import annotations

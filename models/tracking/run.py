@@ -9,7 +9,7 @@ import numpy as np
 import torch
 
 from core.errors import InputError
-from models.tracking.good_features import good_features_to_track
+from core.good_features import good_features
 from models.tracking.klt import klt_track
 from models.tracking.point_tracker import METHODS, PointTracker
 
@@ -25,7 +25,8 @@ def track_points(
     progress: bool = False,
     compile: bool = False,
 ) -> dict[str, np.ndarray]:
-    """Track given points, or ``detect`` good features in the first frame, through gray frames ``(H, W)``
+    """Track given points, or ``detect`` good features in the first frame (:func:`core.good_features.good_features`,
+    OpenCV's, as the runtime detects them), through gray frames ``(H, W)``
     (``compile``: the DCF trackers' step through ``torch.compile``, see :meth:`PointTracker.track`).
 
     Returns:
@@ -44,13 +45,8 @@ def track_points(
     for t, frame in enumerate(frames):
         if frame.shape != frames[0].shape:
             raise InputError(f"frame {t} has size {frame.shape}, frame 0 has {frames[0].shape}")
-    if points is None:
-        if detect < 1:
-            raise InputError(f"--detect needs a positive number of points, got {detect}")
-        points = good_features_to_track(torch.from_numpy(np.asarray(frames[0], np.float32)), detect).numpy()
-        if len(points) == 0:
-            raise InputError("no good features to track in the first frame (is it blank?)")
-    points = np.asarray(points, dtype=np.float64)
+    # OpenCV's detector, as the runtime's: infer.py track starts from the same points with and without --onnx
+    points = good_features(frames[0], detect) if points is None else np.asarray(points, dtype=np.float64)
     if method == "klt":
         gray = [np.clip(np.asarray(f), 0, 255).round().astype(np.uint8) for f in frames]
         tracks, lost = klt_track(gray, points)

@@ -84,3 +84,6 @@ def test_track_with_a_bundle_runs_the_runtime(frame_dir, tracking_bundle, tmp_pa
     assert "onnxruntime" in capsys.readouterr().out
     track_files(tracking_bundle, folder, tmp_path / "runtime.npz", detect=20)
     assert (tmp_path / "cli.npz").read_bytes() == (tmp_path / "runtime.npz").read_bytes()
+    # PyTorch starts from the runtime's points, so the two paths' tracks can be compared point by point
+    assert infer.main(["track", "--frames", str(folder), "--detect", "20", "--out", str(tmp_path / "torch.npz")]) == 0
+    np.testing.assert_array_equal(np.load(tmp_path / "torch.npz")["points"], np.load(tmp_path / "cli.npz")["points"])

@@ -10,13 +10,14 @@ import torch
 
 from core.errors import InputError
 from core.frames import read_frames
+from core.good_features import good_features
 from core.streak import streak_blur
 from data.flow import synthetic_sequence
 from models.tracking import PointTracker
 from models.tracking.blur import radial_power_profile, relative_blur
 from models.tracking.compression import block_grid_ratio
 from models.tracking.motion_blur import motion_blur_streak
-from runtime.tracking import OnnxPointTracker, good_features
+from runtime.tracking import OnnxPointTracker
 from tests.models.tracking.test_point_tracker import _noisy_sequence, _smooth_image, _translate
 
 pytestmark = pytest.mark.slow  # uses an exported bundle
