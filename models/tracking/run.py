@@ -7,6 +7,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from core.errors import InputError
 from core.good_features import good_features
@@ -57,13 +58,11 @@ def track_points(
     requested: list[float] = []  # when each frame was asked for, i.e. when the one before it was tracked
 
     def tensors() -> Iterator[torch.Tensor]:
-        for frame in frames:
+        for frame in tqdm(frames, desc=f"track {method}", unit="frame", disable=not progress):
             requested.append(time.perf_counter())
             yield torch.as_tensor(np.asarray(frame, np.float32), device=device)
 
-    tracks, lost, psr = tracker.track(
-        tensors(), torch.as_tensor(points, dtype=torch.float32), progress=progress, compile=compile
-    )
+    tracks, lost, psr = tracker.track(tensors(), torch.as_tensor(points, dtype=torch.float32), compile=compile)
     done = np.array([*requested[1:], time.perf_counter()]) - start
     return {
         "tracks": tracks.double().cpu().numpy(),
