@@ -48,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
         if args.onnx:
             from runtime.video_loop import segment_folder as runtime_segment_folder
 
-            n, seconds = runtime_segment_folder(_runtime_tracker(args.onnx), args.video, args.mask, args.out)
+            n, seconds = runtime_segment_folder(_runtime_tracker(args.onnx), args.video, args.mask, args.out,
+                                                progress=True)
             print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
             return 0
         from data.vos.io import list_frames

@@ -42,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
     if args.onnx:
         from runtime.tracking import track_files
 
-        message, result = track_files(args.onnx, args.frames, args.out, args.points, args.detect, args.threads)
+        message, result = track_files(args.onnx, args.frames, args.out, args.points, args.detect, args.threads,
+                                      progress=True)
         if args.video:
             write_overlay_video(args.video, read_frames(args.frames)[0], result["tracks"], result["lost"])
         print(message + (f" and {args.video}" if args.video else ""))

@@ -34,6 +34,7 @@ from core.errors import InputError
 from core.files import writable_folder, write_npz
 from core.frames import read_frames, read_points
 from core.good_features import good_features
+from core.progress import progress as progress_line
 from core.streak import (
     Streak,
     quarter_slices,
@@ -76,8 +77,10 @@ class OnnxPointTracker:
                              f"{self.min_size} to {self.max_size} px a side")
         return frame[None, None]
 
-    def track(self, frames: Iterable[np.ndarray], points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Track points (P, 2) given in the first frame through gray frames (H, W) of equal size.
+    def track(self, frames: Iterable[np.ndarray], points: np.ndarray,
+              progress: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Track points (P, 2) given in the first frame through gray frames (H, W) of equal size (``progress``: a
+        progress bar on stderr).
 
         Returns:
             tracks (T, P, 2) float32, lost (T, P) bool and PSR (T, P) float32 (inf in frame 0).
@@ -88,7 +91,7 @@ class OnnxPointTracker:
         single = len(points) == 1  # the graphs take at least 2 points; a copy leaves a lone point's result alone
         points = np.concatenate([points, points]) if single else points
         tracks, lost, psr, previous = [], [], [], None
-        for t, frame in enumerate(frames):
+        for t, frame in enumerate(progress_line(frames, f"track {self.method} (onnxruntime)", enabled=progress)):
             image = self._frame(frame, t)
             if previous is None:
                 self.init_graph, self.step_graph = self._graphs(self._low_snr(image, points))
@@ -227,10 +230,11 @@ def _blurred(image: np.ndarray, variance: float) -> np.ndarray:
 
 
 def track_files(bundle: str | Path, frames: str | Path, out: str | Path, points: str | Path | None = None,
-                detect: int | None = None, threads: int | None = None, provider: str = "cpu") -> tuple[str, dict]:
+                detect: int | None = None, threads: int | None = None, provider: str = "cpu",
+                progress: bool = False) -> tuple[str, dict]:
     """Track the start ``points`` (a file) or ``detect`` good features through the frames ``frames`` (a folder or
     glob) with the bundle and write the tracks file ``out``; returns a one-line summary and the written arrays
-    (the command ``runtime.tracking``)."""
+    (the command ``runtime.tracking``, with a progress bar on stderr where ``progress``)."""
     if (points is None) == (detect is None):
         raise InputError("give either start points (--points) or a number of points to detect (--detect)")
     tracker = OnnxPointTracker(bundle, threads, provider)
@@ -238,7 +242,7 @@ def track_files(bundle: str | Path, frames: str | Path, out: str | Path, points:
     start = read_points(points) if points is not None else good_features(images[0], detect)
     writable_folder(Path(out).parent)
     begin = time.perf_counter()
-    tracks, lost, psr = tracker.track(images, start)
+    tracks, lost, psr = tracker.track(images, start, progress)
     seconds = time.perf_counter() - begin
     result = {"tracks": tracks.astype(np.float64), "lost": lost, "psr": psr.astype(np.float64), "points": start}
     write_npz(out, compress=False, method=np.array(tracker.method), frames=np.array([str(p) for p in paths]), **result)
@@ -260,7 +264,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     def run() -> None:
-        print(track_files(args.bundle, args.frames, args.out, args.points, args.detect, args.threads, args.provider)[0])
+        print(track_files(args.bundle, args.frames, args.out, args.points, args.detect, args.threads, args.provider,
+                          progress=True)[0])
 
     return run_command("runtime.tracking", run)
 

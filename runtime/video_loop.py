@@ -19,6 +19,7 @@ from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.files import staging_folder, writable_folder
 from core.processing_size import check_process_height, nearest_indices, processing_size
+from core.progress import progress as progress_line
 from runtime.bundle import add_runtime_arguments
 from runtime.vos_io import list_frames, read_frame, read_mask, write_mask
 
@@ -130,10 +131,11 @@ def _resize_labels(labels: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return labels[rows[:, None], cols]
 
 
-def segment_folder(tracker: NumpyVideoLoop, video: str | Path, mask_path: str | Path, out: str | Path
-                   ) -> tuple[int, float]:
+def segment_folder(tracker: NumpyVideoLoop, video: str | Path, mask_path: str | Path, out: str | Path,
+                   progress: bool = False) -> tuple[int, float]:
     """Segment the frames of ``video`` from the first-frame mask and write ``out/<frame>.png`` palette masks, all
-    moved into place only when every frame was segmented. Returns (frames, seconds)."""
+    moved into place only when every frame was segmented (``progress``: a progress line on stderr). Returns
+    (frames, seconds)."""
     frames = list_frames(video)
     mask = read_mask(mask_path)
     first = read_frame(frames[0])
@@ -153,7 +155,8 @@ def segment_folder(tracker: NumpyVideoLoop, video: str | Path, mask_path: str | 
             yield image
 
     try:
-        for path, labels in zip(frames, tracker.segment(images(), {0: mask}), strict=True):
+        segmented = zip(frames, tracker.segment(images(), {0: mask}), strict=True)
+        for path, labels in progress_line(segmented, "segment (onnxruntime)", len(frames), enabled=progress):
             write_mask(staging / f"{path.stem}.png", labels)
         seconds = time.perf_counter() - start
         for png in sorted(staging.iterdir()):
@@ -176,7 +179,7 @@ def video_command(prog: str, description: str, make_tracker: Callable[..., Numpy
 
     def run() -> None:
         tracker = make_tracker(args.bundle, args.threads, args.provider)
-        n, seconds = segment_folder(tracker, args.video, args.mask, args.out)
+        n, seconds = segment_folder(tracker, args.video, args.mask, args.out, progress=True)
         print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
 
     return run_command(prog, run)

@@ -55,9 +55,10 @@ def test_command_without_torch_matches_pytorch(torch_free, tracking_bundle, fram
 
 
 def test_detected_points_are_opencvs_good_features(torch_free, tracking_bundle, frames, tmp_path) -> None:
-    torch_free("runtime.tracking", "--bundle", tracking_bundle, "--frames", frames, "--detect", "25", "--out",
-               tmp_path / "tracks.npz")
+    proc = torch_free("runtime.tracking", "--bundle", tracking_bundle, "--frames", frames, "--detect", "25", "--out",
+                      tmp_path / "tracks.npz")
     data = np.load(tmp_path / "tracks.npz")
+    assert f"{len(data['lost'])}/{len(data['lost'])} frames" in proc.stderr  # the progress line
     first = read_frames(frames)[0][0]
     np.testing.assert_array_equal(data["points"], good_features(first, 25))
     expected = cv2.goodFeaturesToTrack(first.astype(np.uint8), 25, 0.01, 5).reshape(-1, 2)
