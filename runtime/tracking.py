@@ -80,7 +80,7 @@ class OnnxPointTracker:
     def track(self, frames: Iterable[np.ndarray], points: np.ndarray,
               progress: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Track points (P, 2) given in the first frame through gray frames (H, W) of equal size (``progress``: a
-        progress bar on stderr).
+        progress line on stderr, :func:`core.progress.progress`).
 
         Returns:
             tracks (T, P, 2) float32, lost (T, P) bool and PSR (T, P) float32 (inf in frame 0).
@@ -234,7 +234,7 @@ def track_files(bundle: str | Path, frames: str | Path, out: str | Path, points:
                 progress: bool = False) -> tuple[str, dict]:
     """Track the start ``points`` (a file) or ``detect`` good features through the frames ``frames`` (a folder or
     glob) with the bundle and write the tracks file ``out``; returns a one-line summary and the written arrays
-    (the command ``runtime.tracking``, with a progress bar on stderr where ``progress``)."""
+    (the command ``runtime.tracking``, with a progress line on stderr where ``progress``)."""
     if (points is None) == (detect is None):
         raise InputError("give either start points (--points) or a number of points to detect (--detect)")
     tracker = OnnxPointTracker(bundle, threads, provider)
