@@ -24,10 +24,11 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   (:mod:`models.tracking.compression`, for :func:`core.streak.streak_found`); with ``thresholds.streak_score``
   (null: off) and ``streak_match_px2`` the runtime matches streaks as :meth:`PointTracker._streak_matched_step`
   does, with ``core.streak.streak_blur``.
-- ``snr.onnx``: ``frame``, ``points`` (P >= 2, inside the frame) -> ``snr`` (1,), the points' median
-  signal-to-noise ratio (:meth:`PointTracker.signal_to_noise`); below ``thresholds.low_snr`` the runtime tracks
-  the sequence with ``init_low_snr.onnx`` and ``step_low_snr.onnx``, the graphs of the tracker's low-SNR twin
-  (Tukey windows, the level-0 patch size at every level; inputs and outputs as ``init`` and ``step``).
+- ``snr.onnx``: ``frame``, ``points`` (P >= 2) -> ``snr`` (1,), the median signal-to-noise ratio of the points
+  inside the frame, inf where none is (:meth:`PointTracker.signal_to_noise`); below ``thresholds.low_snr`` the
+  runtime tracks the sequence with ``init_low_snr.onnx`` and ``step_low_snr.onnx``, the graphs of the tracker's
+  low-SNR twin (Tukey windows, the level-0 patch size at every level; inputs and outputs as ``init`` and
+  ``step``).
 
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
 difference and the lost flags that differ.

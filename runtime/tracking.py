@@ -127,18 +127,10 @@ class OnnxPointTracker:
         return tuple(np.stack(a)[:, keep] for a in (tracks, lost, psr))  # type: ignore[return-value]
 
     def _low_snr(self, image: np.ndarray, points: np.ndarray) -> bool:
-        """Whether the median signal-to-noise ratio of the ``points`` inside the (1, 1, H, W) first frame (the
-        ``snr`` graph, ``PointTracker.signal_to_noise``) is below the bundle's ``low_snr`` (never where that is
-        null or no point is inside)."""
-        if self.low_snr is None:
-            return False
-        height, width = image.shape[2:]
-        x, y = points[:, 0], points[:, 1]
-        inside = points[np.isfinite(points).all(1) & (x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1)]
-        if len(inside) == 0:
-            return False
-        inside = np.concatenate([inside, inside]) if len(inside) == 1 else inside  # the graph takes 2 or more
-        return float(self.snr_graph(image, inside)[0]) < self.low_snr
+        """Whether the median signal-to-noise ratio of the ``points`` (P >= 2) inside the (1, 1, H, W) first frame
+        (the ``snr`` graph, ``PointTracker.signal_to_noise``: inf where none is inside) is below the bundle's
+        ``low_snr`` (never where that is null)."""
+        return self.low_snr is not None and float(self.snr_graph(image, points)[0]) < self.low_snr
 
     def _graphs(self, low_snr: bool) -> tuple:
         """The init and step graphs of the tracker (``low_snr`` False) or of its low-SNR twin, each loaded once."""

@@ -454,16 +454,20 @@ class PointTracker(nn.Module):
         return variance
 
     def signal_to_noise(self, frame: Tensor, points: Tensor) -> Tensor:
-        """Median signal-to-noise ratio ``(1,)`` of the points ``(P, 2)`` in a ``(1, 1, H, W)`` frame: the variance
+        """Median signal-to-noise ratio ``(1,)`` of the points ``(P, 2)`` inside a ``(1, 1, H, W)`` frame: the variance
         of each point's level-0 patch (``patch_size[0]`` px, as :meth:`_sample` measures it) over the frame's noise
-        variance (:meth:`_noise_variance`, at least the 8-bit rounding's; inf when ``noise_reg`` is 0: no noise
-        model)."""
+        variance (:meth:`_noise_variance`, at least the 8-bit rounding's). The lower median, as ``torch.median``;
+        inf where no point is inside (non-finite points count as outside) or ``noise_reg`` is 0 (no noise model)."""
         noise = self._noise_variance(frame)
         if noise is None:
             return torch.full((1,), math.inf, dtype=frame.dtype, device=frame.device)
-        ratio = self._moments(extract_patches(frame, points, self.sizes[0]))[1] / noise
-        # the lower median (as torch.median) by topk, which exports to ONNX
-        return ratio.topk((ratio.shape[0] + 1) // 2, largest=False).values[-1:]
+        inside = self._inside(points, frame)
+        centres = torch.where(inside.unsqueeze(-1), points, torch.zeros_like(points))
+        ratio = self._moments(extract_patches(frame, centres, self.sizes[0]))[1] / noise
+        ratio = torch.where(inside, ratio, torch.full_like(ratio, math.inf)).sort().values  # outside last
+        # the lower median of the inside points by a gather at a computed index: a fixed shape, which exports
+        middle = ((inside.sum() - 1) // 2).clamp_min(0).reshape(1)
+        return ratio.gather(0, middle)
 
     @staticmethod
     def _noise_power(variance: Tensor | None, std: Tensor, level: int) -> Tensor | None:
@@ -515,8 +519,7 @@ class PointTracker(nn.Module):
         frame = self._frame(frame)
         points = self._points(points, frame)
         if switch and self.low_snr_tracker is not None and not exporting():
-            inside = points[self._inside(points, frame)]
-            if len(inside) and float(self.signal_to_noise(frame, inside)) < self.low_snr:
+            if float(self.signal_to_noise(frame, points)) < self.low_snr:
                 return replace(self.low_snr_tracker.init(frame, points), low_snr=True)
         state = self._train(frame, points)
         streak = self._streak(state.frame)

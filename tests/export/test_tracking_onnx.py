@@ -37,11 +37,16 @@ def test_step_and_init_graphs_match_pytorch(tracking_bundle) -> None:
 
 
 def test_snr_graph_matches_pytorch(tracking_bundle) -> None:
+    """At sizes other than exported, with points outside the frame and not finite among them (left out by both),
+    and with none inside (inf)."""
     snr, tracker = Bundle(tracking_bundle, "tracking").graph("snr"), PointTracker("ccot").eval()
     for height, width, points in ((96, 128, 8), (150, 200, 41)):
         frame, _, positions, *_ = example_inputs(tracker, height, width, points, seed=4)
-        want = tracker.signal_to_noise(frame, positions)
-        np.testing.assert_allclose(snr(frame.numpy(), positions.numpy()), want.numpy(), rtol=1e-4)
+        away = torch.tensor([[-5.0, 10.0], [width + 2.0, 20.0], [float("nan"), 5.0], [10.0, height - 0.5]])
+        for chosen in (positions, torch.cat([away[:2], positions, away[2:]]), away):
+            want = tracker.signal_to_noise(frame, chosen)
+            np.testing.assert_allclose(snr(frame.numpy(), chosen.numpy()), want.numpy(), rtol=1e-4)
+        assert want.item() == np.inf
     assert Bundle(tracking_bundle, "tracking").section("thresholds")["low_snr"] == tracker.low_snr
 
 

@@ -657,6 +657,25 @@ def test_signal_to_noise_is_the_patch_variance_over_the_noise():
     assert got.shape == (1,) and got.item() == pytest.approx(want, rel=0.15)
 
 
+def test_signal_to_noise_reads_the_points_inside_only():
+    """Points outside the frame or not finite are left out: the lower median over the inside points of each 31 px
+    crop's variance (a loop over the points, integer positions) over the tracker's own noise variance, exact to
+    rounding for an even and an odd count; inf where no point is inside."""
+    gen = torch.Generator().manual_seed(6)
+    image = (_smooth_image(120, 140, 5) + 10 * torch.randn(120, 140, generator=gen, dtype=torch.float64))[None, None]
+    tracker = PointTracker().double()
+    inside = [[30.0, 30.0], [70.0, 50.0], [100.0, 80.0], [50.0, 90.0], [110.0, 40.0], [60.0, 70.0]]
+    outside = [[-3.0, 40.0], [150.0, 50.0], [40.0, 125.0], [float("nan"), 60.0], [float("inf"), 1.0]]
+    noise = tracker._noise_variance(image).item()
+    for count in (6, 5):
+        points = torch.tensor(outside[:2] + inside[:count] + outside[2:], dtype=torch.float64)
+        ratios = sorted(image[0, 0, int(y) - 15 : int(y) + 16, int(x) - 15 : int(x) + 16].var(unbiased=False).item()
+                        / noise for x, y in inside[:count])
+        got = tracker.signal_to_noise(image, points)
+        assert got.shape == (1,) and got.item() == pytest.approx(ratios[(count - 1) // 2], rel=1e-9)
+    assert tracker.signal_to_noise(image, torch.tensor(outside, dtype=torch.float64)).item() == math.inf
+
+
 def _noisy_sequence(noise: float) -> tuple[list[torch.Tensor], torch.Tensor, torch.Tensor]:
     """Four frames of a smooth texture moving by (2.5, -1.5) px per frame with white noise of std ``noise``, a grid
     of points and their true positions in the last frame."""
