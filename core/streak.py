@@ -19,6 +19,7 @@ _BLOCK = 8  # px: the block size of JPEG and MPEG compression
 BLOCK_GRID_PRESENT = 1.1
 MIN_QUARTER = 64  # px: the least side of a frame's quarter whose streak is read (streak_uniform)
 UNIFORM_TOLERANCE = 2.0  # px: how far a quarter's streak may end from the frame's in a uniform blur
+CONTINUE_ANGLE = math.radians(20)  # rad: how far a streak's direction may turn from the previous frame's and continue
 
 
 def streak_kernel(length: float, angle: float) -> np.ndarray:
@@ -74,7 +75,7 @@ def streaks_matched(change: float, streak_match: float, blur_match: float, unifo
 
 
 def streak_found(length: float, angle: float, score: float, rival: float, threshold: float,
-                 block_grid: float = math.inf) -> bool:
+                 block_grid: float = math.inf, previous: Streak | None = None) -> bool:
     """Whether the cepstral reading of a frame (``models.tracking.motion_blur.motion_blur_streak``: a streak of
     ``length`` px at ``angle`` rad, its ``score`` and ``rival``) shows a straight streak: the score below
     ``threshold`` (negative), nothing below half of it in other directions and, in a frame that shows a codec's
@@ -82,10 +83,20 @@ def streak_found(length: float, angle: float, score: float, rival: float, thresh
     streak's end not on the 8 px lattice of block-transform compression (JPEG, MPEG: 8 x 8 blocks aligned with the
     pixel grid leave their deepest cepstral minima at multiples of 8 px along x and y; in such a frame a real
     streak within half a pixel of such a point, e.g. a pan of 8 or 16 px along x or y, is missed, and its blur is
-    matched as a Gaussian's). Without a block grid such a minimum is the streak's, and it counts."""
+    matched as a Gaussian's). Without a block grid such a minimum is the streak's, and it counts.
+
+    Hysteresis: a streak found in the ``previous`` frame continues at half the threshold. A score below
+    ``threshold / 2``, at least ``threshold / 2`` below the rival, in a direction within
+    :data:`CONTINUE_ANGLE` of the previous streak's, is found too. A long streak over fine texture scores
+    weaker (the blur leaves fewer of its spectral zeros above the noise), while a sharp frame reads no lead of
+    that size over the other directions, and a single weak reading does not start a streak."""
     x, y = length * math.cos(angle), length * math.sin(angle)
     on_lattice = abs(x - _BLOCK * round(x / _BLOCK)) < 0.5 and abs(y - _BLOCK * round(y / _BLOCK)) < 0.5
-    return score < threshold and rival > threshold / 2 and not (on_lattice and block_grid > BLOCK_GRID_PRESENT)
+    deep = score < threshold
+    if previous is not None and not deep:
+        turn = abs((angle - previous[1] + math.pi / 2) % math.pi - math.pi / 2)  # directions modulo pi
+        deep = score < threshold / 2 and score - rival < threshold / 2 and turn <= CONTINUE_ANGLE
+    return deep and rival > threshold / 2 and not (on_lattice and block_grid > BLOCK_GRID_PRESENT)
 
 
 def quarter_slices(height: int, width: int) -> list[tuple[slice, slice]] | None:

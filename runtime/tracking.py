@@ -105,7 +105,7 @@ class OnnxPointTracker:
                 if self.blur_match is None:
                     positions, flags, scores, means, *filters = self.step_graph(image, previous, positions, flags,
                                                                                 means, *filters)
-                elif (new_streak := self._streak(image)) is not None or template:
+                elif (new_streak := self._streak(image, streak)) is not None or template:
                     (positions, flags, scores, means, *filters), template = self._streak_step(
                         image, previous, positions, flags, means, filters, streak, new_streak, template)
                     reference = last = None  # the Gaussian matching restarts from this frame
@@ -163,15 +163,16 @@ class OnnxPointTracker:
             return [positions, flags, scores, means, *filters], profile
         return self.step_graph(image, previous, positions, flags, means, *filters), reference
 
-    def _streak(self, image: np.ndarray) -> Streak | None:
+    def _streak(self, image: np.ndarray, previous: Streak | None = None) -> Streak | None:
         """The straight motion blur (length, angle) of a (1, 1, H, W) frame (``PointTracker._streak``); None where
-        the ``streak`` graph's scores show none (``core.streak.streak_found`` with the bundle's ``streak_score``)
-        and where streak matching is off (the bundle's smallest frame, 64 px, is large enough to measure)."""
+        the ``streak`` graph's scores show none (``core.streak.streak_found`` with the bundle's ``streak_score``,
+        continuing the ``previous`` frame's streak at half of it) and where streak matching is off (the bundle's
+        smallest frame, 64 px, is large enough to measure)."""
         if self.streak_graph is None:
             return None
         length, angle, score, rival, *grid = (float(v) for v in self.streak_graph(image)[0])
         block_grid = grid[0] if grid else math.inf  # bundles before the block-grid column: assume a block grid
-        found = streak_found(length, angle, score, rival, self.streak_score, block_grid)
+        found = streak_found(length, angle, score, rival, self.streak_score, block_grid, previous)
         return (length, angle) if found else None
 
     def _uniform(self, image: np.ndarray, streak: Streak | None, previous: np.ndarray | None = None) -> bool:

@@ -261,7 +261,9 @@ class PointTracker(nn.Module):
         counts as blurred by a straight streak (if no other direction scores below half of it,
         :func:`core.streak.streak_found`), which is then matched exactly (:meth:`_streak_matched_step`); None:
         streaks are treated as any other blur. The default, -10, lies between the scores of the shared real
-        frames (-2.2 to -9.8) and those of streaks of 5.4 px and longer (-11.2 to -20.8).
+        frames (-2.2 to -9.8) and those of streaks of 5.4 px and longer (-11.2 to -20.8). A streak found in the
+        previous frame continues at half of it (hysteresis, :func:`core.streak.streak_found`): long streaks over
+        fine texture such as water score -9 to -10.
         streak_match: change of blur variance (px^2, in the direction it changes most) between a frame's streak
         and those of the views the filters were last trained afresh on above which the streaks are matched;
         twice ``blur_match`` by default, since streaks near the detection limit (about 5 px) flicker in and out
@@ -739,24 +741,24 @@ class PointTracker(nn.Module):
         frame = self._frame(frame)
         if self.blur_match is None:
             return self._advance(forward, frame, state)
-        streak = self._streak(frame)
+        streak = self._streak(frame, state.streak)
         if streak is not None or state.template:
             previous = None if state.template else state.frame  # a first streak: was it there already?
             return self._streak_matched_step(forward, frame, state, streak, previous)
         return self._blur_matched_step(forward, frame, state)
 
-    def _streak(self, frame: Tensor) -> Streak | None:
+    def _streak(self, frame: Tensor, previous: Streak | None = None) -> Streak | None:
         """The straight motion blur ``(length, angle)`` of a ``(1, 1, H, W)`` frame; None where its cepstral scores
-        show none (:func:`core.streak.streak_found` with ``streak_score``), where streak matching is off, where
-        the frame is too small to measure and while the graph of :meth:`init` is being exported (the runtime
-        measures streaks with a graph of their own)."""
+        show none (:func:`core.streak.streak_found` with ``streak_score``, continuing the ``previous`` frame's
+        streak at half of it), where streak matching is off, where the frame is too small to measure and while the
+        graph of :meth:`init` is being exported (the runtime measures streaks with a graph of their own)."""
         too_small = min(frame.shape[-2:]) <= 2 * MAX_LENGTH
         if self.streak_score is None or self.blur_match is None or too_small or exporting():
             return None
         length, angle, score, rival = motion_blur_streak(frame).double()[0].tolist()
         # only a candidate streak needs the block grid (the lattice test); without one streak_found is False anyway
-        block_grid = float(block_grid_ratio(frame)) if score < self.streak_score else math.inf
-        found = streak_found(length, angle, score, rival, self.streak_score, block_grid)
+        block_grid = float(block_grid_ratio(frame)) if score < self.streak_score / 2 else math.inf
+        found = streak_found(length, angle, score, rival, self.streak_score, block_grid, previous)
         return (length, angle) if found else None
 
     def _uniform(self, frame: Tensor, streak: Streak | None, previous: Tensor | None = None) -> bool:

@@ -75,6 +75,22 @@ def test_a_streak_stands_out_in_one_direction_only_and_off_the_block_lattice():
         assert streak_found(length, angle, -14.0, -4.7, -10.0, block_grid=1.0)  # none: the minimum is the streak's
 
 
+def test_a_streak_of_the_previous_frame_continues_at_half_the_threshold():
+    """Hysteresis: a weaker reading (score -8, 6 below the rival) is a streak only where the previous frame had
+    one in about the same direction (within 20 degrees, directions modulo pi); at least half the threshold in
+    score and in lead over the rival, and the rival and lattice tests still hold."""
+    weak = (9.0, 0.6, -8.0, -2.0, -10.0)
+    assert not streak_found(*weak)  # no streak before: a weak reading does not start one
+    assert streak_found(*weak, previous=(7.5, 0.6 + math.radians(19)))
+    assert not streak_found(*weak, previous=(7.5, 0.6 + math.radians(21)))  # turned too far
+    assert streak_found(9.0, 0.05, -8.0, -2.0, -10.0, previous=(7.5, math.pi - 0.05))  # the same line, 0.1 rad
+    assert not streak_found(9.0, 0.6, -8.0, -4.0, -10.0, previous=(7.5, 0.6))  # a lead of 4 over the rival
+    assert not streak_found(9.0, 0.6, -4.9, 2.0, -10.0, previous=(7.5, 0.6))  # a score above -5
+    assert not streak_found(9.0, 0.6, -14.0, -5.5, -10.0, previous=(7.5, 0.6))  # a rival below -5: a block grid
+    assert not streak_found(16.1, 0.0, -8.0, -2.0, -10.0, previous=(16.0, 0.0))  # on the lattice (grid assumed)
+    assert streak_found(16.1, 0.0, -8.0, -2.0, -10.0, block_grid=1.0, previous=(16.0, 0.0))
+
+
 def test_quarters_cover_the_frame_and_refuse_small_ones():
     frame = np.arange(130 * 141).reshape(130, 141)
     quarters = quarter_slices(*frame.shape)

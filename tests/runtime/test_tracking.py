@@ -18,7 +18,7 @@ from models.tracking.blur import radial_power_profile, relative_blur
 from models.tracking.compression import block_grid_ratio
 from models.tracking.motion_blur import motion_blur_streak
 from runtime.tracking import OnnxPointTracker
-from tests.models.tracking.test_point_tracker import _noisy_sequence, _smooth_image, _translate
+from tests.models.tracking.test_point_tracker import _noisy_sequence, _smooth_image, _translate, weakening_streak_frames
 
 pytestmark = pytest.mark.slow  # uses an exported bundle
 
@@ -182,3 +182,15 @@ def test_a_noisy_sequence_runs_on_the_low_snr_graphs_as_in_pytorch(tracking_bund
     clean, _, _ = _noisy_sequence(0.0)
     tracker.track([f.float().numpy() for f in clean[:2]], start)
     assert tracker.step_graph is tracker._graphs(False)[1]
+
+
+def test_a_weakening_streak_continues_as_in_pytorch(tracking_bundle) -> None:
+    """Frame 5's weak streak reading (``weakening_streak_frames``) continues frame 4's streak in the runtime too:
+    the same lost flags and positions within 0.01 px as PyTorch's, whose step matches that streak."""
+    images = weakening_streak_frames()
+    start = np.random.default_rng(4).uniform([30, 30], [290, 210], (40, 2))
+    tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
+    ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
+                                                         torch.from_numpy(start).float())
+    np.testing.assert_array_equal(lost, ref_lost.numpy())
+    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
