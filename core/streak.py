@@ -78,7 +78,9 @@ def streak_found(length: float, angle: float, score: float, rival: float, thresh
                  block_grid: float = math.inf, previous: Streak | None = None) -> bool:
     """Whether the cepstral reading of a frame (``models.tracking.motion_blur.motion_blur_streak``: a streak of
     ``length`` px at ``angle`` rad, its ``score`` and ``rival``) shows a straight streak: the score below
-    ``threshold`` (negative), nothing below half of it in other directions and, in a frame that shows a codec's
+    ``threshold`` (negative), nothing below half of it in other directions (in a frame without a codec's block
+    grid, nothing below half of the score: a directional texture, such as waves, may hold a rival below half the
+    threshold, while a block grid's minima lie in several directions, as deep) and, in a frame that shows a codec's
     block grid (``block_grid``, its block-grid ratio, above :data:`BLOCK_GRID_PRESENT`; inf: assume it does), the
     streak's end not on the 8 px lattice of block-transform compression (JPEG, MPEG: 8 x 8 blocks aligned with the
     pixel grid leave their deepest cepstral minima at multiples of 8 px along x and y; in such a frame a real
@@ -96,7 +98,9 @@ def streak_found(length: float, angle: float, score: float, rival: float, thresh
     if previous is not None and not deep:
         turn = abs((angle - previous[1] + math.pi / 2) % math.pi - math.pi / 2)  # directions modulo pi
         deep = score < threshold / 2 and score - rival < threshold / 2 and turn <= CONTINUE_ANGLE
-    return deep and rival > threshold / 2 and not (on_lattice and block_grid > BLOCK_GRID_PRESENT)
+    grid = block_grid > BLOCK_GRID_PRESENT
+    alone = rival > threshold / 2 or (not grid and rival > score / 2)
+    return deep and alone and not (on_lattice and grid)
 
 
 def quarter_slices(height: int, width: int) -> list[tuple[slice, slice]] | None:

@@ -75,6 +75,16 @@ def test_a_streak_stands_out_in_one_direction_only_and_off_the_block_lattice():
         assert streak_found(length, angle, -14.0, -4.7, -10.0, block_grid=1.0)  # none: the minimum is the streak's
 
 
+def test_without_a_block_grid_a_rival_may_reach_half_the_score():
+    """A directional texture (waves) holds a rival below half the threshold: without a block grid the streak
+    still counts while the rival stays above half of its score; with a grid (or none measured) the rival must stay
+    above half the threshold."""
+    assert streak_found(9.9, 1.56, -16.2, -5.4, -10.0, block_grid=1.02)
+    assert not streak_found(9.9, 1.56, -16.2, -5.4, -10.0, block_grid=1.3)
+    assert not streak_found(9.9, 1.56, -16.2, -5.4, -10.0)  # no block grid measured: assume one
+    assert not streak_found(9.9, 1.56, -16.2, -8.2, -10.0, block_grid=1.02)  # a rival deeper than half the score
+
+
 def test_a_streak_of_the_previous_frame_continues_at_half_the_threshold():
     """Hysteresis: a weaker reading (score -8, 6 below the rival) is a streak only where the previous frame had
     one in about the same direction (within 20 degrees, directions modulo pi); at least half the threshold in
