@@ -88,7 +88,7 @@ def streak_found(length: float, angle: float, score: float, rival: float, thresh
     matched as a Gaussian's). Without a block grid such a minimum is the streak's, and it counts.
 
     Hysteresis: a streak found in the ``previous`` frame continues at half the threshold. A score below
-    ``threshold / 2``, at least ``threshold / 2`` below the rival, in a direction within
+    ``threshold / 2`` and at least ``-threshold / 2`` below the rival (5 below it at -10), in a direction within
     :data:`CONTINUE_ANGLE` of the previous streak's, is found too. A long streak over fine texture scores
     weaker (the blur leaves fewer of its spectral zeros above the noise), while a sharp frame reads no lead of
     that size over the other directions, and a single weak reading does not start a streak."""

@@ -258,8 +258,9 @@ class PointTracker(nn.Module):
         blur_match: blur variance (px^2) between a frame and the frame the filters were trained on above which
         the two are matched before the search (:meth:`step`); None: never.
         streak_score: cepstral score (:func:`~models.tracking.motion_blur.motion_blur_streak`) below which a frame
-        counts as blurred by a straight streak (if no other direction scores below half of it,
-        :func:`core.streak.streak_found`), which is then matched exactly (:meth:`_streak_matched_step`); None:
+        counts as blurred by a straight streak (if no other direction scores below half of it, or below half the
+        streak's score in a frame without a codec block grid, :func:`core.streak.streak_found`), which is then
+        matched exactly (:meth:`_streak_matched_step`); None:
         streaks are treated as any other blur. The default, -10, lies between the scores of the shared real
         frames (-2.2 to -9.8) and those of streaks of 5.4 px and longer (-11.2 to -20.8). A streak found in the
         previous frame continues at half of it (hysteresis, :func:`core.streak.streak_found`): long streaks over
