@@ -39,6 +39,17 @@ def _pytorch_tracks(folder, points: np.ndarray):
     return tracks.numpy(), lost.numpy(), psr.numpy()
 
 
+def _assert_tracks_as_pytorch(bundle, images: list[np.ndarray], start: np.ndarray,
+                              tracker: PointTracker | None = None) -> None:
+    """The runtime's lost flags equal PyTorch's (``tracker``, default ``PointTracker("ccot")``) and its positions
+    lie within 0.01 px of them."""
+    tracks, lost, _ = OnnxPointTracker(bundle, threads=1).track(images, start)
+    tracker = PointTracker("ccot") if tracker is None else tracker
+    ref_tracks, ref_lost, _ = tracker.track([torch.from_numpy(f) for f in images], torch.from_numpy(start).float())
+    np.testing.assert_array_equal(lost, ref_lost.numpy())
+    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+
+
 def test_command_without_torch_matches_pytorch(torch_free, tracking_bundle, frames, tmp_path) -> None:
     points = np.random.default_rng(0).uniform([4, 4], [124, 92], (60, 2))
     points[0] = (-5, 10)  # outside: lost from the start
@@ -92,11 +103,7 @@ def test_blur_matching_branches_match_pytorch(tracking_bundle) -> None:
     blurrier, sharper = relative_blur(profiles[[0, 2]], profiles[[1, 3]])
     assert blurrier > 2 and sharper < -2
     start = np.random.default_rng(1).uniform([10, 10], [118, 86], (40, 2))
-    tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
-    ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
-                                                         torch.from_numpy(start).float())
-    np.testing.assert_array_equal(lost, ref_lost.numpy())
-    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+    _assert_tracks_as_pytorch(tracking_bundle, images, start)
 
 
 @pytest.mark.parametrize("size", [(96, 128), (144, 160)])
@@ -139,10 +146,7 @@ def test_a_blocked_frame_as_in_pytorch(tracking_bundle) -> None:
     blocked = [float(block_grid_ratio(torch.from_numpy(f)[None, None])) > tracker.block_limit for f in images]
     assert blocked == [False, True, True, False]
     start = np.random.default_rng(3).uniform([10, 10], [118, 86], (40, 2))
-    tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
-    ref_tracks, ref_lost, _ = tracker.track([torch.from_numpy(f) for f in images], torch.from_numpy(start).float())
-    np.testing.assert_array_equal(lost, ref_lost.numpy())
-    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+    _assert_tracks_as_pytorch(tracking_bundle, images, start, tracker)
 
 
 @pytest.mark.parametrize("blur", [0.0, 2.0])
@@ -189,8 +193,4 @@ def test_a_weakening_streak_continues_as_in_pytorch(tracking_bundle) -> None:
     the same lost flags and positions within 0.01 px as PyTorch's, whose step matches that streak."""
     images = weakening_streak_frames()
     start = np.random.default_rng(4).uniform([30, 30], [290, 210], (40, 2))
-    tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
-    ref_tracks, ref_lost, _ = PointTracker("ccot").track([torch.from_numpy(f) for f in images],
-                                                         torch.from_numpy(start).float())
-    np.testing.assert_array_equal(lost, ref_lost.numpy())
-    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+    _assert_tracks_as_pytorch(tracking_bundle, images, start)
