@@ -757,8 +757,10 @@ class PointTracker(nn.Module):
         if self.streak_score is None or self.blur_match is None or too_small or exporting():
             return None
         length, angle, score, rival = motion_blur_streak(frame).double()[0].tolist()
-        # only a candidate streak needs the block grid (the lattice test); without one streak_found is False anyway
-        block_grid = float(block_grid_ratio(frame)) if score < self.streak_score / 2 else math.inf
+        # only a candidate streak needs the block grid (the rival and lattice tests): a score below the threshold,
+        # or below half of it where the previous frame had a streak; otherwise streak_found is False anyway
+        candidate = score < (self.streak_score if previous is None else self.streak_score / 2)
+        block_grid = float(block_grid_ratio(frame)) if candidate else math.inf
         found = streak_found(length, angle, score, rival, self.streak_score, block_grid, previous)
         return (length, angle) if found else None
 
