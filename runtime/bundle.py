@@ -1,14 +1,16 @@
 """Deployment bundles: a folder holding one task's ONNX graphs and ``bundle.json``, the manifest the runtime
 checks before it runs anything.
 
-    bundle.json   {"format": "dcfvision-bundle", "version": 1, "task": "vos", "opset": 20, "precision": "float32",
-                   "graphs": {"frame": {"file": "frame.onnx", "sha256": "..."}, ...}, "model_hash": "...",
-                   "input": {...}, "normalisation": {...}, "thresholds": {...}, "settings": {...}}
+    bundle.json   {"format": "dcfvision-bundle", "version": 1, "task": "vos", "revision": 1, "opset": 20,
+                   "precision": "float32", "graphs": {"frame": {"file": "frame.onnx", "sha256": "..."}, ...},
+                   "model_hash": "...", "input": {...}, "normalisation": {...}, "thresholds": {...}, "settings": {...}}
 
 ``input`` states what the graphs accept (image layout, sizes), ``normalisation`` how pixels are scaled before the
 graphs, ``thresholds`` the decision values built into them and ``settings`` what the host loop needs. The model
-hash is the SHA-256 of the graphs' hashes: it names the model as a whole. Opening a bundle checks the format,
-the task, that every graph of the task is listed and present, and each graph's SHA-256; any mismatch is an
+hash is the SHA-256 of the graphs' hashes: it names the model as a whole. ``revision`` counts changes of one task's
+graph interface (``TASK_REVISIONS``; a manifest without it is revision 1), so a runtime refuses graphs of another
+revision with the command that writes them again. Opening a bundle checks the format, the task and its revision,
+that every graph of the task is listed and present, and each graph's SHA-256; any mismatch is an
 ``InputError`` naming the bundle.
 """
 
@@ -35,6 +37,9 @@ TASK_GRAPHS = {
     "vos": ("frame", "features", "init", "insert", "update"),
     "davos": ("features", "frame", "encode", "insert", "fit_init", "fit_update"),
 }
+#: The revision of each task's graph interface, raised when the graphs' inputs, outputs or contract change (tracking
+#: 2: the ``snr`` graph leaves out the points outside the frame itself, so the runtime no longer filters them).
+TASK_REVISIONS = {"triangulation": 1, "tracking": 2, "horizon": 1, "vos": 1, "davos": 1}
 #: The command that writes each task's bundle (named in error messages).
 EXPORT_COMMANDS = {"triangulation": "export.triangulation", "tracking": "export.tracking_onnx",
                    "horizon": "export.horizon_onnx", "vos": "export.vos_onnx", "davos": "export.davos_onnx"}
@@ -62,8 +67,8 @@ def write_manifest(folder: str | Path, task: str, opset: int, precision: str = "
     folder = Path(folder)
     graphs = {name: {"file": f"{name}.onnx", "sha256": file_sha256(folder / f"{name}.onnx")}
               for name in TASK_GRAPHS[task]}
-    manifest = {"format": FORMAT, "version": VERSION, "task": task, "opset": opset, "precision": precision,
-                "graphs": graphs, "model_hash": model_hash(graphs), **sections}
+    manifest = {"format": FORMAT, "version": VERSION, "task": task, "revision": TASK_REVISIONS[task], "opset": opset,
+                "precision": precision, "graphs": graphs, "model_hash": model_hash(graphs), **sections}
     return write_text(folder / MANIFEST, json.dumps(manifest, indent=1))
 
 
@@ -111,6 +116,10 @@ class Bundle:
             raise InputError(f"{file} is not a version {VERSION} {FORMAT} manifest")
         if manifest.get("task") != self.task:
             raise InputError(f"bundle {self.path} is a {manifest.get('task')!r} bundle, not a {self.task!r} bundle")
+        revision = manifest.get("revision", 1)
+        if revision != TASK_REVISIONS[self.task]:
+            raise InputError(f"bundle {self.path} holds revision {revision!r} {self.task} graphs; this runtime runs "
+                             f"revision {TASK_REVISIONS[self.task]}: export the bundle again with {export}")
         return manifest
 
     def _check_graphs(self) -> None:

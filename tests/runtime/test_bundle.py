@@ -1,5 +1,5 @@
 """Deployment bundles: the manifest a bundle is opened with, and each way a bundle can be wrong (another task, a
-graph missing or changed, a manifest edited), named in one InputError."""
+graph missing or changed, a manifest edited, graphs of another revision), named in one InputError."""
 
 import json
 import shutil
@@ -7,7 +7,7 @@ import shutil
 import pytest
 
 from core.errors import InputError
-from runtime.bundle import MANIFEST, Bundle, file_sha256, model_hash
+from runtime.bundle import MANIFEST, TASK_REVISIONS, Bundle, file_sha256, model_hash
 
 pytestmark = pytest.mark.slow  # uses an exported bundle
 
@@ -68,3 +68,17 @@ def test_a_changed_model_hash_is_refused(bundle) -> None:
     _edit_manifest(bundle, lambda m: m.update(model_hash="0" * 64))
     with pytest.raises(InputError, match="model hash"):
         Bundle(bundle, "triangulation")
+
+
+def test_graphs_of_another_revision_are_refused(bundle, tracking_bundle, tmp_path) -> None:
+    assert Bundle(bundle, "triangulation").manifest["revision"] == TASK_REVISIONS["triangulation"] == 1
+    _edit_manifest(bundle, lambda m: m.pop("revision"))
+    assert Bundle(bundle, "triangulation").manifest["task"] == "triangulation"  # no revision: revision 1
+    _edit_manifest(bundle, lambda m: m.update(revision=2))
+    with pytest.raises(InputError, match="revision 2 triangulation graphs; this runtime runs revision 1: export the "
+                                         "bundle again with python -m export.triangulation"):
+        Bundle(bundle, "triangulation")
+    old_tracking = shutil.copytree(tracking_bundle, tmp_path / "tracking")
+    _edit_manifest(old_tracking, lambda m: m.pop("revision"))  # written before the snr graph masked points itself
+    with pytest.raises(InputError, match="revision 1 tracking graphs; this runtime runs revision 2"):
+        Bundle(old_tracking, "tracking")
