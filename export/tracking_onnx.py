@@ -12,9 +12,8 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   denominators, finest level first, point-interleaved): :meth:`PointTracker.init`.
 - ``step.onnx``: ``frame``, ``previous`` (the frame before it, for the forward-backward test), ``positions``,
   ``lost``, ``psr_mean`` and the filters -> ``positions_out``, ``lost_out``, ``psr``, ``psr_mean_out`` and
-  ``filters_l_out``: one
-  :meth:`PointTracker.forward` (one Gather per level for the patches, matrix products for the small DFTs, a fixed
-  number of Newton iterations).
+  ``filters_l_out``: one :meth:`PointTracker.forward` (one GatherElements per level for the patches, matrix products
+  for the small DFTs, a fixed number of Newton iterations).
 - ``profile.onnx``: ``frame`` -> ``profile`` (1, 3, bins), its radial power profile, and ``relative_blur.onnx``:
   ``reference``, ``profile`` -> ``blur`` (1,) px^2 (:mod:`models.tracking.blur`): the blur matching of
   :meth:`PointTracker.step`, whose branches (retrain on a blurred previous frame, search a blurred copy) the

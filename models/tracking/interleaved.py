@@ -13,6 +13,7 @@ import torch
 from torch import Tensor
 
 from models.dcf._signal import wrap_index
+from models.export_mode import exporting
 
 
 def interleaved_argmax(score: Tensor, weight: Tensor | None = None) -> tuple[Tensor, Tensor, Tensor]:
@@ -25,9 +26,9 @@ def interleaved_argmax(score: Tensor, weight: Tensor | None = None) -> tuple[Ten
     weighted = score if weight is None else score * weight
     value, column = weighted.amax(0).max(1)
     rows = torch.arange(score.shape[0], device=score.device)[:, None]
-    row = weighted.flatten()[_flat_index(score, rows, column)].argmax(0)  # the winning column of every map
+    row = _at(weighted, rows, column).argmax(0)  # the winning column of every map
     if weight is not None:
-        value = score.flatten()[_flat_index(score, row, column)]
+        value = _at(score, row, column)
     return value, row, column
 
 
@@ -43,6 +44,16 @@ def _flat_index(score: Tensor, row: Tensor, column: Tensor) -> Tensor:
     return (torch.remainder(row, n) * p + points) * m + torch.remainder(column, m)
 
 
+def _at(score: Tensor, row: Tensor, column: Tensor) -> Tensor:
+    """The values of ``score`` ``(N, P, N)`` at (row, point, column) as :func:`_flat_index` takes them, shaped as
+    the index. Exported as GatherElements (``torch.gather``), which onnxruntime runs several times faster than the
+    GatherND of advanced indexing."""
+    index = _flat_index(score, row, column)
+    if exporting():
+        return torch.gather(score.reshape(1, -1), 1, index.reshape(1, -1)).view(index.shape)
+    return score.flatten()[index]
+
+
 def interleaved_peak(
     score: Tensor, subpixel: bool = True, argmax: tuple[Tensor, Tensor, Tensor] | None = None
 ) -> tuple[Tensor, Tensor]:
@@ -55,13 +66,12 @@ def interleaved_peak(
         shift ``(P, 2)`` (x, y) in bins and the value at the integer maximum ``(P,)``.
     """
     value, row, column = interleaved_argmax(score) if argmax is None else argmax
-    flat = score.flatten()
     shifts = []
     for index, size, step in ((column, score.shape[2], (0, 1)), (row, score.shape[0], (1, 0))):  # x, then y
         shift = wrap_index(index, size).to(score.dtype)
         if subpixel and size >= 3:
-            left = flat[_flat_index(score, row - step[0], column - step[1])]
-            right = flat[_flat_index(score, row + step[0], column + step[1])]
+            left = _at(score, row - step[0], column - step[1])
+            right = _at(score, row + step[0], column + step[1])
             curvature = left - 2 * value + right
             concave = curvature < 0
             delta = 0.5 * (left - right) / torch.where(concave, curvature, torch.ones_like(curvature))
@@ -89,7 +99,7 @@ def interleaved_psr(
     offsets = torch.arange(exclude, device=score.device) - exclude // 2
     rows = (row[:, None] + offsets)[:, :, None]
     cols = (column[:, None] + offsets)[:, None, :]
-    window = score.flatten()[_flat_index(score, rows, cols)].flatten(1) - centre[:, None]  # (P, exclude^2)
+    window = _at(score, rows, cols).flatten(1) - centre[:, None]  # (P, exclude^2)
     count = n * m - exclude * exclude
     mean = -window.sum(-1) / count
     var = ((squares - window.square().sum(-1)) / count - mean.square()).clamp_min(0)
