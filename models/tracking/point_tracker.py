@@ -133,8 +133,14 @@ def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
 
 def _lerp(start: Tensor, end: Tensor, weight: Tensor) -> Tensor:
     """``torch.lerp`` (one fused kernel) in eager mode; ``start + weight (end - start)`` in an exported graph, where
-    ``lerp`` becomes a broadcast ``Where`` over two branches that onnxruntime runs several times slower."""
-    return start + weight * (end - start) if exporting() else torch.lerp(start, end, weight)
+    ``lerp`` becomes a broadcast ``Where`` over two branches that onnxruntime runs several times slower. There a
+    per-point weight (last axis 1) is first expanded along the short last axis: onnxruntime broadcasts over outer
+    axes in long contiguous runs but over a short inner axis run by run, several times slower."""
+    if not exporting():
+        return torch.lerp(start, end, weight)
+    if isinstance(weight, Tensor) and weight.dim() and weight.shape[-1] == 1:
+        weight = weight.expand(*weight.shape[:-1], start.shape[-1])
+    return start + weight * (end - start)
 
 
 def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
