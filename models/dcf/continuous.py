@@ -23,6 +23,7 @@ from models.dcf._signal import check_signal, full_frequencies, half_frequencies,
 from models.dcf.peak import _unravel
 from models.dcf.preprocess import dcf_preprocess
 from models.dcf.psr import peak_to_sidelobe_ratio
+from models.export_mode import spread
 
 
 def cubic_spline_fourier(f: Tensor, a: float = -0.75) -> Tensor:
@@ -188,13 +189,13 @@ def _series(
     ax = kx * theta[..., 1:2]
     cx, sx = torch.cos(ax), torch.sin(ax)
     powers = torch.stack([w, w * kx, w * kx * kx], -1) if order else w.unsqueeze(-1)
-    er, ei = cx.unsqueeze(-1) * powers, sx.unsqueeze(-1) * powers
+    m = powers.shape[-1]
+    er, ei = spread(cx.unsqueeze(-1), m) * powers, spread(sx.unsqueeze(-1), m) * powers
     basis = torch.cat([torch.cat([er, ei], -1), torch.cat([-ei, er], -1)], -2)
     u = (torch.cat([sr, si], -1) if srsi is None else srsi) @ basis
-    m = powers.shape[-1]
     ur, ui = u[..., :m], u[..., m:]
     ay = ky * theta[..., 0:1]
-    cy, sy = torch.cos(ay).unsqueeze(-1), torch.sin(ay).unsqueeze(-1)
+    cy, sy = spread(torch.cos(ay).unsqueeze(-1), m), spread(torch.sin(ay).unsqueeze(-1), m)
     re = cy * ur - sy * ui  # Re(exp(i ky theta_y) u)
     im = cy * ui + sy * ur
     value = re[..., 0].sum(-1)
