@@ -4,7 +4,7 @@ import pytest
 import torch
 
 from models.dcf import response_peak
-from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
+from models.tracking.interleaved import _halving_max, interleaved_argmax, interleaved_peak, interleaved_psr
 
 
 def _maps(p: int, n: int, m: int, seed: int) -> torch.Tensor:
@@ -33,8 +33,10 @@ def _psr_loop(response: torch.Tensor, exclude: int) -> float:
     return float((response.max() - side.mean()) / side.std(unbiased=False))
 
 
-@pytest.mark.parametrize(("n", "m"), [(21, 21), (15, 15), (9, 11)])
-def test_argmax_and_peak_equal_the_per_map_results(n, m):
+@pytest.mark.parametrize("exporting", [False, True])
+@pytest.mark.parametrize(("n", "m"), [(21, 21), (15, 15), (9, 11), (32, 31)])
+def test_argmax_and_peak_equal_the_per_map_results(n, m, exporting, monkeypatch):
+    monkeypatch.setattr(torch.compiler, "is_exporting", lambda: exporting)  # the exported forms: gathers, halving max
     maps = _maps(40, n, m, seed=n + m)
     interleaved = maps.permute(1, 0, 2).contiguous()
     value, row, column = interleaved_argmax(interleaved)
@@ -47,6 +49,13 @@ def test_argmax_and_peak_equal_the_per_map_results(n, m):
     torch.testing.assert_close(peak, expected_peak)
     integer, _ = interleaved_peak(interleaved, subpixel=False)
     torch.testing.assert_close(integer, response_peak(maps, 2, subpixel=False)[0])
+
+
+def test_halving_max_equals_the_maximum_over_the_outer_axis():
+    gen = torch.Generator().manual_seed(5)
+    for n in range(1, 34):
+        score = torch.randn(n, 7, 5, generator=gen, dtype=torch.float64)
+        assert torch.equal(_halving_max(score), score.amax(0)), n
 
 
 def test_weighted_argmax_is_the_maximum_of_the_weighted_maps_with_the_maps_value():
