@@ -22,3 +22,9 @@ def spread(x: Tensor, size: int, axis: int = -1) -> Tensor:
     if axis == -2:
         return torch.matmul(torch.ones(size, 1, device=x.device, dtype=x.dtype), x)
     raise ValueError(f"spread takes axis -1 or -2, got {axis}")
+
+
+def outer_product(per_point: Tensor, table: Tensor) -> Tensor:
+    """``(R, P, K)`` products of ``per_point`` ``(P, 1)`` and ``table`` ``(R, 1, K)``; in an export a matrix product
+    of inner size 1 (the same products), which onnxruntime runs about 7x faster than the doubly broadcast ``Mul``."""
+    return torch.matmul(per_point, table) if exporting() else per_point * table

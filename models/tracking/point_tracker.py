@@ -89,7 +89,7 @@ from models.dcf import (
 from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
-from models.export_mode import exporting, spread
+from models.export_mode import exporting, outer_product, spread
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
 from models.tracking.compression import BLOCK, block_grid, block_grid_ratio, compression_error_variance
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
@@ -142,12 +142,6 @@ def _lerp(start: Tensor, end: Tensor, weight: Tensor) -> Tensor:
     return start + weight * (end - start)
 
 
-def _outer(per_point: Tensor, table: Tensor) -> Tensor:
-    """``(R, P, K)`` products of ``per_point`` ``(P, 1)`` and ``table`` ``(R, 1, K)``; exported as a matrix product of
-    inner size 1 (the same products), which onnxruntime runs about 7x faster than the doubly broadcast ``Mul``."""
-    return torch.matmul(per_point, table) if exporting() else per_point * table
-
-
 def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     """Bilinear ``size x size`` patches around sub-pixel centres, natural order (centre at ``size // 2``),
     point-interleaved.
@@ -173,9 +167,9 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     if exporting():
         # ONNX: one gather at flat indices (as_strided has no ONNX equivalent); the same values. torch.gather
         # exports as GatherElements, whose element loop onnxruntime runs about 8x faster than Gather (index_select),
-        # which copies each element alone, and Gather several times faster than advanced indexing's GatherND
-        # each patch's top row (P, n) plus each row's offset (n, 1, 1): broadcast over outer axes only (fast in
-        # onnxruntime, see _lerp)
+        # which copies each element alone, and Gather several times faster than advanced indexing's GatherND. The
+        # indices are each patch's top row (P, n) plus each row's offset (n, 1, 1): a broadcast over outer axes
+        # only, which onnxruntime runs in long runs (models.export_mode.spread)
         offsets = torch.arange(n, device=centres.device)
         top_rows = (y0 * padded.shape[-1] + x0)[:, None] + offsets
         flat = top_rows + (offsets * padded.shape[-1])[:, None, None]
@@ -447,7 +441,7 @@ class PointTracker(nn.Module):
         mean = mean[:, None]
         (dr, di), (zr, zi) = getattr(self, f"mean_spectrum_{level}"), self.dfts[level](x)
         scale = spread(scale, zr.shape[-1])
-        return (zr - _outer(mean, dr)) * scale, (zi - _outer(mean, di)) * scale, std
+        return (zr - outer_product(mean, dr)) * scale, (zi - outer_product(mean, di)) * scale, std
 
     @staticmethod
     def _moments(x: Tensor) -> tuple[Tensor, Tensor]:
@@ -712,7 +706,7 @@ class PointTracker(nn.Module):
         regulariser = spread(self.reg_rel * mean_energy, b.shape[-1])
         if noise is not None:
             noise_spectrum = getattr(self, f"noise_spectrum_{level}")
-            regulariser = regulariser + _outer(self.noise_reg * noise[:, None], noise_spectrum)
+            regulariser = regulariser + outer_product(self.noise_reg * noise[:, None], noise_spectrum)
         inv = 1 / (b + regulariser)
         return torch.cat([(ar * zr - ai * zi) * inv, (ar * zi + ai * zr) * inv], -1)
 

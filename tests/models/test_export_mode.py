@@ -1,5 +1,6 @@
-"""``models.export_mode.spread``: unchanged in eager mode, repeated exactly along the axis while exporting, and
-exported as a matrix product that onnxruntime runs to the same values."""
+"""``models.export_mode``: ``spread`` unchanged in eager mode, repeated exactly along the axis while exporting, and
+exported as a matrix product that onnxruntime runs to the same values; ``outer_product`` the same products in both
+modes."""
 
 import numpy as np
 import onnx
@@ -8,7 +9,7 @@ import pytest
 import torch
 
 from export.onnx import export_onnx
-from models.export_mode import spread
+from models.export_mode import outer_product, spread
 
 
 def test_spread_is_the_identity_in_eager_mode() -> None:
@@ -27,6 +28,16 @@ def test_spread_while_exporting_repeats_exactly(monkeypatch, dtype) -> None:
     assert torch.equal(last, per_point.expand(6, 3)) and torch.equal(middle, table.expand(4, 6, 3))  # bit-exact
     with pytest.raises(ValueError, match="axis -1 or -2"):
         spread(table, 6, 0)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_outer_product_is_the_broadcast_product_in_both_modes(monkeypatch, dtype) -> None:
+    gen = torch.Generator().manual_seed(3)
+    per_point, table = torch.randn(9, 1, generator=gen, dtype=dtype), torch.randn(5, 1, 4, generator=gen, dtype=dtype)
+    expected = per_point[None] * table  # (5, 9, 4) by broadcasting
+    assert torch.equal(outer_product(per_point, table), expected)
+    monkeypatch.setattr(torch.compiler, "is_exporting", lambda: True)
+    assert torch.equal(outer_product(per_point, table), expected)  # the matrix product of inner size 1: exact
 
 
 class _Product(torch.nn.Module):
