@@ -66,7 +66,6 @@ import torch
 import torch.nn.functional as F
 from kornia.filters import filter2d
 from torch import Tensor, nn
-from tqdm import tqdm
 
 from core.errors import InputError
 from core.streak import (
@@ -872,7 +871,7 @@ class PointTracker(nn.Module):
 
     @torch.no_grad()
     def track(
-        self, frames: Iterable[Tensor | np.ndarray], points: Tensor, progress: bool = False, compile: bool = False
+        self, frames: Iterable[Tensor | np.ndarray], points: Tensor, compile: bool = False
     ) -> tuple[Tensor, Tensor, Tensor]:
         """Track points ``(P, 2)`` given in the first frame through gray frames ``(H, W)`` of equal size.
 
@@ -885,7 +884,7 @@ class PointTracker(nn.Module):
         """
         param = self.label_0
         tracks, lost, psr, state, shape = [], [], [], None, None
-        for t, frame in enumerate(tqdm(frames, desc=f"track {self.method}", disable=not progress)):
+        for t, frame in enumerate(frames):  # progress: the caller's (models.tracking.run.track_points)
             frame = torch.as_tensor(frame, dtype=param.dtype, device=param.device)
             if frame.dim() != 2:
                 raise InputError(f"frame {t}: expected a (H, W) gray image, got shape {tuple(frame.shape)}")
