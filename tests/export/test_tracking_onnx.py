@@ -11,7 +11,7 @@ import torch
 
 from core.errors import InputError
 from core.streak import streak_blur
-from export.tracking_onnx import example_inputs, export_bundle, parity
+from export.tracking_onnx import GRAPH_JOBS, example_inputs, export_bundle, export_graphs, parity
 from models.tracking import PointTracker
 from models.tracking.motion_blur import motion_blur_streak
 from runtime.bundle import Bundle
@@ -86,3 +86,25 @@ def test_bad_export_arguments(tmp_path) -> None:
         export_bundle(tmp_path / "b", "klt")
     with pytest.raises(InputError, match="must lie in"):
         export_bundle(tmp_path / "b", "ccot", height=32)
+    with pytest.raises(InputError, match="--workers must be at least 1"):
+        export_bundle(tmp_path / "b", "ccot", workers=0)
+    assert not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_an_export_error_ends_the_export(tmp_path, capsys, workers) -> None:
+    """An error in a graph's export (here every job's: an unknown method, which export_bundle would have refused
+    before), in this process or in a worker process, reaches the caller as itself, with no graph written and no
+    line claiming one."""
+    with pytest.raises(InputError, match="unknown tracking method 'klt'"):
+        export_graphs(tmp_path, "klt", 96, 128, workers=workers)
+    assert list(tmp_path.iterdir()) == []
+    assert "exported" not in capsys.readouterr().err
+
+
+def test_the_bundle_holds_every_graph_job(tracking_bundle) -> None:
+    """The parallel export (the fixture's default: one worker per core) wrote each job's graphs."""
+    names = {name.strip() for job in GRAPH_JOBS for name in job.split(",")}
+    assert names == {"init.onnx", "step.onnx", "profile.onnx", "relative_blur.onnx", "streak.onnx", "snr.onnx",
+                     "init_low_snr.onnx", "step_low_snr.onnx"}
+    assert names <= {path.name for path in tracking_bundle.iterdir()}
