@@ -180,6 +180,12 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
     return _lerp(rows[..., :-1], rows[..., 1:], frac[:, :, 0])
 
 
+def _level_centres(positions: Tensor, level: int) -> Tensor:
+    """Level-``level`` pixel coordinates ``(P, 2)`` of level-0 positions ``(P, 2)`` (level pixel ``i`` sits at
+    ``2^l (i + 0.5) - 0.5``)."""
+    return (positions + 0.5) / 2**level - 0.5
+
+
 def _peak_gap(a: tuple[Tensor, Tensor, Tensor], b: tuple[Tensor, Tensor, Tensor], n: int) -> Tensor:
     """Chebyshev distance ``(P,)`` in bins between two :func:`interleaved_argmax` results on ``(n, P, n)`` maps
     (shifts taken circularly)."""
@@ -422,17 +428,19 @@ class PointTracker(nn.Module):
         self.low_snr_tracker = None if low_snr is None else PointTracker(
             **{**settings, "patch_size": self.sizes[0], "window": "tukey", "low_snr": None})
 
-    def _sample(self, image: Tensor, centres: Tensor, level: int) -> tuple[Tensor, Tensor, Tensor]:
+    def _sample(self, image: Tensor, centres: Tensor, level: int,
+                patches: Tensor | None = None) -> tuple[Tensor, Tensor, Tensor]:
         """Band-limited spectrum (real, imaginary ``(2M + 1, P, M + 1)``) of the normalised (zero mean, unit
         variance), windowed patches around ``centres`` ``(P, 2)`` (pixels of that level), and the patches' std
-        ``(P,)`` before the normalisation.
+        ``(P,)`` before the normalisation. ``patches``: those patches (:func:`extract_patches`), where already
+        extracted.
 
         The normalisation is linear per patch, so it is applied to the spectrum: the mean times the spectrum of a
         constant patch is subtracted, then the result is divided by the standard deviation. A patch flatter than
         ``1e-3 (|mean| + 1)`` (below the 8-bit quantisation step) has no structure, and what the subtraction
         leaves of it is rounding: its spectrum is set to zero, so its filter scores nothing and the point is
         lost."""
-        x = extract_patches(image, centres, self.sizes[level])
+        x = extract_patches(image, centres, self.sizes[level]) if patches is None else patches
         mean, variance = self._moments(x)
         std = variance.sqrt()
         flat = std <= 1e-3 * (mean.abs() + 1)
@@ -470,16 +478,22 @@ class PointTracker(nn.Module):
         of each point's level-0 patch (``patch_size[0]`` px, as :meth:`_sample` measures it) over the frame's noise
         variance (:meth:`_noise_variance`, at least the 8-bit rounding's). The lower median, as ``torch.median``;
         inf where no point is inside (non-finite points count as outside) or ``noise_reg`` is 0 (no noise model)."""
+        return self._signal_to_noise(frame, points)[0]
+
+    def _signal_to_noise(self, frame: Tensor, points: Tensor) -> tuple[Tensor, Tensor | None]:
+        """:meth:`signal_to_noise` and the level-0 patches ``(n, P, n)`` it measured (None without a noise model):
+        those :meth:`_train` samples on the same frame (outside points at (0, 0), as there)."""
         noise = self._noise_variance(frame)
         if noise is None:
-            return torch.full((1,), math.inf, dtype=frame.dtype, device=frame.device)
+            return torch.full((1,), math.inf, dtype=frame.dtype, device=frame.device), None
         inside = self._inside(points, frame)
         centres = torch.where(inside.unsqueeze(-1), points, torch.zeros_like(points))
-        ratio = self._moments(extract_patches(frame, centres, self.sizes[0]))[1] / noise
+        patches = extract_patches(frame, _level_centres(centres, 0), self.sizes[0])
+        ratio = self._moments(patches)[1] / noise
         ratio = torch.where(inside, ratio, torch.full_like(ratio, math.inf)).sort().values  # outside last
         # the lower median of the inside points by a gather at a computed index: a fixed shape, which exports
         middle = ((inside.sum() - 1) // 2).clamp_min(0).reshape(1)
-        return ratio.gather(0, middle)
+        return ratio.gather(0, middle), patches
 
     @staticmethod
     def _noise_power(variance: Tensor | None, std: Tensor, level: int) -> Tensor | None:
@@ -530,22 +544,25 @@ class PointTracker(nn.Module):
         exported graph, whose runtime decides with a graph of its own) keeps this tracker's filters."""
         frame = self._frame(frame)
         points = self._points(points, frame)
+        tracker, patches = self, None
         if switch and self.low_snr_tracker is not None and not exporting():
-            if float(self.signal_to_noise(frame, points)) < self.low_snr:
-                return replace(self.low_snr_tracker.init(frame, points), low_snr=True)
-        state = self._train(frame, points)
-        streak = self._streak(state.frame)
-        return replace(state, streak=streak, template=(streak,) if streak else ())
+            snr, patches = self._signal_to_noise(frame, points)  # the twin has the same level-0 patch size
+            tracker = self.low_snr_tracker if float(snr) < self.low_snr else self
+        state = tracker._train(frame, points, patches)
+        streak = tracker._streak(state.frame)
+        return replace(state, streak=streak, template=(streak,) if streak else (), low_snr=tracker is not self)
 
-    def _train(self, frame: Tensor, points: Tensor) -> TrackerState:
-        """:meth:`init` on a ``(1, 1, H, W)`` frame, without measuring its motion blur."""
+    def _train(self, frame: Tensor, points: Tensor, patches: Tensor | None = None) -> TrackerState:
+        """:meth:`init` on a ``(1, 1, H, W)`` frame, without measuring its motion blur; ``patches``: the level-0
+        patches at the points (outside points at (0, 0)), where :meth:`_signal_to_noise` already extracted them."""
         points = self._points(points, frame)
         lost = ~self._inside(points, frame)
         positions = torch.where(lost.unsqueeze(-1), torch.zeros_like(points), points)
         pyramid = image_pyramid(frame, self.levels)
         ones = torch.ones_like(points[:, 0])
         filters = tuple(
-            self._learn(None, *self._sample(pyramid[lv], (positions + 0.5) / 2**lv - 0.5, lv)[:2], ones, lv)
+            self._learn(None, *self._sample(pyramid[lv], _level_centres(positions, lv), lv,
+                                            patches if lv == 0 else None)[:2], ones, lv)
             for lv in range(self.levels)
         )
         psr = torch.full_like(points[:, 0], float("inf"))
@@ -594,7 +611,7 @@ class PointTracker(nn.Module):
         fine_weight = self._fine_weight(ratio)
         spectra, centres = [], []
         for level in reversed(range(self.levels)):
-            centre = (start + d + 0.5) / 2**level - 0.5
+            centre = _level_centres(start + d, level)
             zr, zi, std = self._sample(pyramid[level], centre, level)
             spectrum = self._response(filters[level], zr, zi, self._noise_power(noise, std, level), level)
             score = self.dfts[level].inverse(spectrum)  # (N, P, N)
@@ -648,7 +665,7 @@ class PointTracker(nn.Module):
         eta = torch.where(lost, torch.zeros_like(psr), torch.full_like(psr, self.eta))
         updated = [self._learn(filters[0], *sample, eta, 0)]
         for level in range(1, self.levels):
-            shift = (target + 0.5) / 2**level - 0.5 - centres[level]
+            shift = _level_centres(target, level) - centres[level]
             updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
         return positions, lost, psr, psr_mean, *updated
 

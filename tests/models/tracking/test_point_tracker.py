@@ -709,6 +709,26 @@ def test_a_noisy_sequence_goes_to_the_low_snr_twin():
     assert not tracker.init(clean[0], points).low_snr
 
 
+@pytest.mark.parametrize("noise", [0.0, 20.0])
+def test_init_extracts_the_level_0_patches_once(monkeypatch, noise):
+    """The first frame's level-0 patches, read for the SNR test, are the ones the filters learn from, on the
+    tracker's own path and on the low-SNR twin's (noise 20): one extraction per level, and filters bit-equal to
+    those of a tracker (or a twin) without the SNR test, points outside the frame among them."""
+    import models.tracking.point_tracker as module
+
+    frames, points, _ = _noisy_sequence(noise)
+    points = torch.cat([points, torch.tensor([[-4.0, 10.0], [200.0, 30.0]], dtype=torch.float64)])
+    calls = []
+    monkeypatch.setattr(module, "extract_patches", lambda *args: calls.append(args[2]) or extract_patches(*args))
+    tracker = PointTracker().double()
+    state = tracker.init(frames[0], points)
+    assert state.low_snr == (noise > 0)
+    assert len(calls) == tracker.levels, calls
+    alone = PointTracker(window="tukey", patch_size=31, low_snr=None) if noise else PointTracker(low_snr=None)
+    for got, want in zip(state.filters, alone.double().init(frames[0], points).filters, strict=True):
+        torch.testing.assert_close(got, want, rtol=0, atol=0)
+
+
 def test_window_and_low_snr_settings_are_checked():
     with pytest.raises(InputError, match="unknown patch window"):
         PointTracker("ccot", window="box")
