@@ -263,6 +263,7 @@ CASES = [
     ("export.tracking_onnx/unwritable-out", "export.tracking_onnx", ["--out", "{unwritable}/bundle"],
      "{unwritable}"),
     ("export.tracking_onnx/not-a-bundle-folder", "export.tracking_onnx", ["--out", "{root}"], "{root}"),
+    ("export.tracking_onnx/zero-workers", "export.tracking_onnx", ["--out", "{out}", "--workers", "0"], "--workers"),
     ("export.triangulation/unwritable-out", "export.triangulation", ["--out", "{unwritable}/bundle"],
      "{unwritable}"),
 ]
