@@ -488,6 +488,7 @@ class PointTracker(nn.Module):
             return torch.full((1,), math.inf, dtype=frame.dtype, device=frame.device), None
         inside = self._inside(points, frame)
         centres = torch.where(inside.unsqueeze(-1), points, torch.zeros_like(points))
+        # level-0 centres as _train computes them ((x + 0.5) - 0.5 may round): the same patches to the bit
         patches = extract_patches(frame, _level_centres(centres, 0), self.sizes[0])
         ratio = self._moments(patches)[1] / noise
         ratio = torch.where(inside, ratio, torch.full_like(ratio, math.inf)).sort().values  # outside last
