@@ -216,19 +216,17 @@ def _worker_threads(threads: int) -> None:
     torch.set_num_threads(threads)
 
 
-def export_graphs(folder: Path, method: str, height: int, width: int, workers: int | None = None,
-                  verbose: bool = True) -> None:
+def export_graphs(folder: Path, method: str, height: int, width: int, workers: int | None = None) -> None:
     """Export every graph of :data:`GRAPH_JOBS` into ``folder``, by ``workers`` processes at once (default: one
     per core, at most one per graph; 1: in this process). Tracing and graph optimisation are single-threaded
-    Python, so on two cores the graphs export side by side in 0.55-0.6 of the time. ``verbose``: a line on stderr
-    per graph done. A failed export cancels the graphs not yet started and raises its error."""
+    Python, so on two cores the graphs export side by side in 0.55-0.6 of the time. A line on stderr reports each
+    graph done. A failed export cancels the graphs not yet started and raises its error."""
     workers = min(len(GRAPH_JOBS), os.cpu_count() or 1) if workers is None else workers
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
 
     def report(done: int, name: str, seconds: float) -> None:
-        if verbose:
-            sys.stderr.write(f"export.tracking_onnx: {name} exported in {seconds:.0f} s ({done}/{len(GRAPH_JOBS)})\n")
+        sys.stderr.write(f"export.tracking_onnx: {name} exported in {seconds:.0f} s ({done}/{len(GRAPH_JOBS)})\n")
 
     if workers == 1:
         for done, name in enumerate(GRAPH_JOBS, 1):
@@ -248,7 +246,7 @@ def export_graphs(folder: Path, method: str, height: int, width: int, workers: i
 
 
 def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, width: int = 320,
-                  workers: int | None = None, verbose: bool = True) -> Path:
+                  workers: int | None = None) -> Path:
     """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``profile.onnx``,
     ``relative_blur.onnx``, ``streak.onnx``, ``snr.onnx``, ``init_low_snr.onnx``, ``step_low_snr.onnx``,
     ``bundle.json``), its graphs exported by ``workers`` processes (:func:`export_graphs`)."""
@@ -258,7 +256,7 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
         raise InputError(f"--height and --width must lie in [{MIN_SIZE}, {MAX_SIZE}], got {height} x {width}")
     tracker = PointTracker(method).eval()
     with staged_bundle(out) as folder:
-        export_graphs(folder, method, height, width, workers, verbose)
+        export_graphs(folder, method, height, width, workers)
         write_manifest(
             folder, "tracking", OPSET,
             input={"frame": "(1, 1, H, W) gray float32 in [0, 255]", "min_size": MIN_SIZE, "max_size": MAX_SIZE,
