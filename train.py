@@ -20,6 +20,7 @@ from lightning.pytorch.cli import LightningCLI
 from core.command import quiet_console, run_command
 from core.errors import InputError
 from models.checkpoint import check_checkpoint_fits, read_checkpoint
+from models.distributed import end_process_group
 
 #: ``--ckpt_path`` values Lightning resolves itself (``last``: the newest ``last.ckpt`` of the run, to resume).
 LIGHTNING_CKPT_ALIASES = ("last", "best", "hpc")
@@ -86,7 +87,10 @@ def run(args: list[str] | None = None) -> int:
     """The command line: ``main`` with input errors as one line on stderr and exit code 2."""
 
     def fit_or_evaluate() -> None:
-        main(args)
+        try:
+            main(args)
+        finally:
+            end_process_group()  # each DDP process, while the interpreter is whole
 
     quiet_console()
     return run_command("train.py", fit_or_evaluate)

@@ -27,6 +27,15 @@ def world_size() -> int:
     return dist.get_world_size() if dist.is_available() and dist.is_initialized() else 1
 
 
+def end_process_group() -> None:
+    """Destroy this process's process group, if it has one (nothing outside a distributed run). Each process of a
+    DDP run calls it when its work is done: a gloo group left to the interpreter's teardown can abort the process
+    (SIGABRT, "terminate called without an active exception") after a run that finished, since its worker threads
+    outlive the interpreter state they need."""
+    if dist.is_available() and dist.is_initialized():
+        dist.destroy_process_group()
+
+
 def gather_objects(obj: object) -> list[object]:
     """``obj`` of every rank, in rank order (``[obj]`` outside a distributed run)."""
     if world_size() == 1:
