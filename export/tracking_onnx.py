@@ -50,6 +50,7 @@ from torch import Tensor, nn
 from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.streak import streak_blur
+from core.threads import set_cpu_threads
 from export.bundle import staged_bundle
 from export.onnx import OPSET, export_onnx
 from models.tracking import PointTracker
@@ -211,11 +212,6 @@ def export_graph(name: str, folder: Path, method: str, height: int, width: int) 
     return time.perf_counter() - start
 
 
-def _worker_threads(threads: int) -> None:
-    """A pool worker's initialiser: its share of the cores for torch's thread pool."""
-    torch.set_num_threads(threads)
-
-
 def export_graphs(folder: Path, method: str, height: int, width: int, workers: int | None = None) -> None:
     """Export every graph of :data:`GRAPH_JOBS` into ``folder``, by ``workers`` processes at once (default: one
     per core, at most one per graph; 1: in this process). Tracing and graph optimisation are single-threaded
@@ -234,14 +230,13 @@ def export_graphs(folder: Path, method: str, height: int, width: int, workers: i
         return
     threads = max(1, (os.cpu_count() or 1) // workers)
     context = multiprocessing.get_context("spawn")  # no fork of a process whose thread pools are running
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_threads, initargs=(threads,)) as pool:
+    with ProcessPoolExecutor(workers, mp_context=context, initializer=set_cpu_threads, initargs=(threads,)) as pool:
         futures = {pool.submit(export_graph, name, folder, method, height, width): name for name in GRAPH_JOBS}
         try:
             for done, future in enumerate(as_completed(futures), 1):
                 report(done, futures[future], future.result())
         except BaseException:
-            for future in futures:
-                future.cancel()
+            pool.shutdown(cancel_futures=True)
             raise
 
 
