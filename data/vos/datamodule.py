@@ -164,7 +164,8 @@ class SequenceTrainingSamples(Dataset):
         cut to ``crop`` (and ``sample_key`` and ``test_index`` dropped: the frames are no longer whole)."""
         if float(torch.rand((), generator=gen)) < self.hflip:
             sample = {k: v.flip(-1) if v.ndim >= 2 else v for k, v in sample.items()}
-            sample["sample_key"][-1] = 1
+            if "sample_key" in sample:  # composite and synthetic samples name no frames
+                sample["sample_key"][-1] = 1
         if self.crop is None:
             return sample
         sample = {k: v for k, v in sample.items() if k not in ("sample_key", "test_index", "test_zoom")}

@@ -41,6 +41,22 @@ def test_each_source_gives_samples_of_one_target_with_its_distractors(source: st
     assert all(torch.equal(v, again[k]) for k, v in ds[3].items())
 
 
+@pytest.mark.parametrize("source", ["twin", "paste", "synthetic", "plain"])
+def test_a_mirrored_sample_is_the_sample_flipped(source: str) -> None:
+    """hflip=1 mirrors every sample of every source (composites and synthetic samples name no frames, so only a
+    plain sample's sample_key records the mirroring)."""
+    seqs = [BlockSequence(s) for s in range(3)]
+    args = dict(max_extra=2, synthetic_size=(48, 64), n_test_frames=2, max_gap=3, min_pixels=20, seed=1)
+    plain = CompositeTrainingSamples(seqs, 2, {source: 1.0}, **args)[1]
+    mirrored = CompositeTrainingSamples(seqs, 2, {source: 1.0}, hflip=1.0, **args)[1]
+    assert plain.keys() == mirrored.keys()
+    for key, value in plain.items():
+        if key == "sample_key":
+            assert mirrored[key][-1] == 1 and torch.equal(mirrored[key][:-1], value[:-1])
+        else:
+            assert torch.equal(mirrored[key], value.flip(-1) if value.ndim >= 2 else value), key
+
+
 def test_held_out_composites_have_every_object_in_the_first_frame() -> None:
     seqs = [BlockSequence(s) for s in range(3)]
     for eval_set, n_ids in (("twins", 2), ("pastes", 3)):
