@@ -1,7 +1,7 @@
 """Export DAVOS or LWL (thesis ch. 6) as a deployment bundle: one graph per component, with the tracker's state
 (filters, memory) outside the graphs, run by ``runtime.davos.OnnxDAVOSTracker``.
 
-    python -m export.davos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check [--davis ROOT ...]]
+    python -m export.davos_onnx --ckpt CKPT --out DIR [--height H --width W] [--workers N] [--check [--davis ROOT ...]]
 
 Graphs (dynamo exporter, opset 20; H, W, the number of objects N and memory slots M dynamic):
 
@@ -16,6 +16,7 @@ Graphs (dynamo exporter, opset 20; H, W, the number of objects N and memory slot
 
 The merging of objects (soft aggregation) and the distractor regeneration (eqs. 6.1-6.5) run on the host, in
 numpy. ``bundle.json`` holds the tracker settings (``DAVOSSettings``) and the network's label channels.
+The graphs export side by side, one process each (``--workers``, default one per core; 1: in this process).
 ``--check`` compares the runtime's masks with the PyTorch tracker's, per frame and object: on held-out twin
 composites of ``--davis`` sequences when given, else on synthetic look-alike videos.
 """
@@ -35,6 +36,7 @@ from core.errors import InputError
 from export.bundle import staged_bundle
 from export.onnx import OPSET, export_onnx
 from export.parity import mask_parity
+from export.pool import GraphJob, export_jobs
 from models.vos.davos_net import DAVOSNet
 from models.vos.davos_tracker import DAVOSTracker
 from models.vos.memory import Memory, memory_insert
@@ -101,8 +103,15 @@ class FitGraph(nn.Module):
         return self.optimizer(tau, x, encodings, weights, sample_weights, self.iters)[0]
 
 
-def _export_graphs(tracker: DAVOSTracker, out: Path, height: int, width: int) -> None:
-    """The six graphs of ``tracker`` written into ``out`` (example frames of ``height`` x ``width``)."""
+#: The graphs of a DAVOS bundle, heaviest first (about 19, 12, 11, 4, 2 and 2 s for the network of
+#: configs/davos_davis2016_cpu.yaml at 96 x 160 on one core), so that a pool of workers ends together.
+GRAPHS = ("frame", "fit_init", "features", "fit_update", "insert", "encode")
+
+
+@torch.no_grad()
+def export_graph(name: str, tracker: DAVOSTracker, out: Path, height: int, width: int) -> None:
+    """Write the graph ``name`` (one of :data:`GRAPHS`) of ``tracker`` into ``out`` as ``name.onnx`` (example
+    frames of ``height`` x ``width``). A module-level function, so that a pool's worker process can run it."""
     net, s = tracker.net, tracker.settings
     k, p, size, _ = net.filter_shape
     stride, labels = net.target_input.stride, net.label_channels
@@ -115,33 +124,40 @@ def _export_graphs(tracker: DAVOSTracker, out: Path, height: int, width: int) ->
     def rnd(*shape: int) -> torch.Tensor:
         return torch.rand(*shape, generator=g)
 
-    image = rnd(1, 3, height, width)
-    export_onnx(FeaturesGraph(net), (image,), out / "features.onnx", ["image"], ["x"],
-                dynamic_shapes=({2: big_h, 3: big_w},))
-    export_onnx(FrameGraph(net), (image, 0.1 * rnd(2, k, p, size, size)), out / "frame.onnx", ["image", "tau"],
-                ["logits", "x"], dynamic_shapes=({2: big_h, 3: big_w}, {0: nd}))
-    export_onnx(EncodeGraph(net), (rnd(2, labels, height, width),), out / "encode.onnx", ["labels"],
-                ["encodings", "weights"], dynamic_shapes=({0: nd, 2: big_h, 3: big_w},))
-    n_mem = 3
-    mem = (rnd(2, n_mem, p, h, w), rnd(2, n_mem, k, h, w), rnd(2, n_mem, k, h, w), rnd(2, n_mem),
-           torch.tensor([1, -1]))
-    export_onnx(InsertGraph(tracker), (*mem, rnd(2, p, h, w), rnd(2, k, h, w), rnd(2, k, h, w)), out / "insert.onnx",
-                ["features", "encodings", "weights", "sample_weights", "newest", "x", "encoding", "weight"],
-                ["features_out", "encodings_out", "weights_out", "sample_weights_out", "newest_out"],
-                dynamic_shapes=({0: nd, 1: md, 3: fh, 4: fw}, {0: nd, 1: md, 3: fh, 4: fw},
-                                {0: nd, 1: md, 3: fh, 4: fw}, {0: nd, 1: md}, {0: nd}, {0: nd, 2: fh, 3: fw},
-                                {0: nd, 2: fh, 3: fw}, {0: nd, 2: fh, 3: fw}))
-    fit_args = (0.1 * rnd(1, k, p, size, size), rnd(1, n_mem, p, h, w), rnd(1, n_mem, k, h, w),
-                rnd(1, n_mem, k, h, w), rnd(1, n_mem))
-    fit_shapes = (None, {1: md, 3: fh, 4: fw}, {1: md, 3: fh, 4: fw}, {1: md, 3: fh, 4: fw}, {1: md})
-    for name, iters in (("fit_init", s.init_iters), ("fit_update", s.update_iters)):
-        export_onnx(FitGraph(net, iters), fit_args, out / f"{name}.onnx",
-                    ["tau", "x", "encodings", "weights", "sample_weights"], ["tau_out"], dynamic_shapes=fit_shapes)
+    path, n_mem = out / f"{name}.onnx", 3
+    if name == "features":
+        export_onnx(FeaturesGraph(net), (rnd(1, 3, height, width),), path, ["image"], ["x"],
+                    dynamic_shapes=({2: big_h, 3: big_w},))
+    elif name == "frame":
+        export_onnx(FrameGraph(net), (rnd(1, 3, height, width), 0.1 * rnd(2, k, p, size, size)), path,
+                    ["image", "tau"], ["logits", "x"], dynamic_shapes=({2: big_h, 3: big_w}, {0: nd}))
+    elif name == "encode":
+        export_onnx(EncodeGraph(net), (rnd(2, labels, height, width),), path, ["labels"], ["encodings", "weights"],
+                    dynamic_shapes=({0: nd, 2: big_h, 3: big_w},))
+    elif name == "insert":
+        memory, sample = {0: nd, 1: md, 3: fh, 4: fw}, {0: nd, 2: fh, 3: fw}
+        mem = (rnd(2, n_mem, p, h, w), rnd(2, n_mem, k, h, w), rnd(2, n_mem, k, h, w), rnd(2, n_mem),
+               torch.tensor([1, -1]))
+        export_onnx(InsertGraph(tracker), (*mem, rnd(2, p, h, w), rnd(2, k, h, w), rnd(2, k, h, w)), path,
+                    ["features", "encodings", "weights", "sample_weights", "newest", "x", "encoding", "weight"],
+                    ["features_out", "encodings_out", "weights_out", "sample_weights_out", "newest_out"],
+                    dynamic_shapes=(memory, memory, memory, {0: nd, 1: md}, {0: nd}, sample, sample, sample))
+    elif name in ("fit_init", "fit_update"):
+        iters = s.init_iters if name == "fit_init" else s.update_iters
+        fit_args = (0.1 * rnd(1, k, p, size, size), rnd(1, n_mem, p, h, w), rnd(1, n_mem, k, h, w),
+                    rnd(1, n_mem, k, h, w), rnd(1, n_mem))
+        memory = {1: md, 3: fh, 4: fw}
+        export_onnx(FitGraph(net, iters), fit_args, path, ["tau", "x", "encodings", "weights", "sample_weights"],
+                    ["tau_out"], dynamic_shapes=(None, memory, memory, memory, {1: md}))
+    else:
+        raise InputError(f"unknown DAVOS graph {name!r}; choose one of {', '.join(GRAPHS)}")
 
 
 @torch.no_grad()
-def export_bundle(tracker: DAVOSTracker, out: str | Path, height: int = 96, width: int = 160) -> Path:
-    """Write the DAVOS bundle of ``tracker`` to the folder ``out`` (example frames ``height`` x ``width``)."""
+def export_bundle(tracker: DAVOSTracker, out: str | Path, height: int = 96, width: int = 160,
+                  workers: int | None = None) -> Path:
+    """Write the DAVOS bundle of ``tracker`` to the folder ``out`` (example frames ``height`` x ``width``), its graphs
+    exported by ``workers`` processes at once (:func:`export.pool.export_jobs`; default one per core)."""
     tracker = tracker.eval()
     net = tracker.net
     sections = {
@@ -153,7 +169,8 @@ def export_bundle(tracker: DAVOSTracker, out: str | Path, height: int = 96, widt
         "network": {"label_channels": net.label_channels, "filter_shape": list(net.filter_shape)},
     }
     with staged_bundle(out) as folder:
-        _export_graphs(tracker, folder, height, width)
+        export_jobs("export.davos_onnx", [GraphJob(name, export_graph, (name, tracker, folder, height, width))
+                                          for name in GRAPHS], workers)
         write_manifest(folder, "davos", OPSET, **sections)
     return Path(out)
 
@@ -179,6 +196,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", required=True, help="bundle folder to write")
     p.add_argument("--height", type=int, default=96, help="example frame height (the graphs accept any)")
     p.add_argument("--width", type=int, default=160, help="example frame width")
+    p.add_argument("--workers", type=int, default=None,
+                   help="graphs exported at once, one process each (default: one per core)")
     p.add_argument("--check", action="store_true", help="compare the runtime's masks with PyTorch's")
     p.add_argument("--davis", help="with --check: DAVIS root whose sequences make twin composites")
     p.add_argument("--split", default="train", help="DAVIS split (default train)")
@@ -196,7 +215,7 @@ def _export_and_check(args: argparse.Namespace) -> None:
     if args.check_frames < 3:
         raise InputError(f"--check-frames must be at least 3, got {args.check_frames}")
     tracker = davos_tracker(args.ckpt)
-    export_bundle(tracker, args.out, args.height, args.width)
+    export_bundle(tracker, args.out, args.height, args.width, args.workers)
     print(f"wrote {args.out}")
     if args.check:
         what, videos = check_videos(args)

@@ -36,11 +36,6 @@ difference and the lost flags that differ.
 from __future__ import annotations
 
 import argparse
-import multiprocessing
-import os
-import sys
-import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -50,9 +45,9 @@ from torch import Tensor, nn
 from core.command import CommandParser, run_command
 from core.errors import InputError
 from core.streak import streak_blur
-from core.threads import set_cpu_threads
 from export.bundle import staged_bundle
 from export.onnx import OPSET, export_onnx
+from export.pool import GraphJob, export_jobs
 from models.tracking import PointTracker
 from models.tracking.blur import RadialPowerProfile, gaussian_blur, relative_blur
 from models.tracking.compression import BlockGridRatio
@@ -194,10 +189,9 @@ GRAPH_JOBS = {
 }
 
 
-def export_graph(name: str, folder: Path, method: str, height: int, width: int) -> float:
-    """Export the bundle graph ``name`` (a key of :data:`GRAPH_JOBS`) of ``PointTracker(method)`` into ``folder``;
-    returns the seconds it took. A module-level function, so that a pool's worker process can run it."""
-    start = time.perf_counter()
+def export_graph(name: str, folder: Path, method: str, height: int, width: int) -> None:
+    """Export the bundle graph ``name`` (a key of :data:`GRAPH_JOBS`) of ``PointTracker(method)`` into ``folder``.
+    A module-level function, so that a pool's worker process can run it."""
     kind, twin = GRAPH_JOBS[name]
     tracker = PointTracker(method).eval()
     tracker = tracker.low_snr_tracker if twin else tracker
@@ -209,35 +203,14 @@ def export_graph(name: str, folder: Path, method: str, height: int, width: int) 
         export_blur_graphs(folder, tracker, height, width)
     else:
         export_snr_graph(folder / name, tracker, height, width)
-    return time.perf_counter() - start
 
 
 def export_graphs(folder: Path, method: str, height: int, width: int, workers: int | None = None) -> None:
-    """Export every graph of :data:`GRAPH_JOBS` into ``folder``, by ``workers`` processes at once (default: one
-    per core, at most one per graph; 1: in this process). Tracing and graph optimisation are single-threaded
-    Python, so on two cores the graphs export side by side in 0.55-0.6 of the time. A line on stderr reports each
-    graph done. A failed export cancels the graphs not yet started and raises its error."""
-    workers = min(len(GRAPH_JOBS), os.cpu_count() or 1) if workers is None else workers
-    if workers < 1:
-        raise InputError(f"--workers must be at least 1, got {workers}")
-
-    def report(done: int, name: str, seconds: float) -> None:
-        sys.stderr.write(f"export.tracking_onnx: {name} exported in {seconds:.0f} s ({done}/{len(GRAPH_JOBS)})\n")
-
-    if workers == 1:
-        for done, name in enumerate(GRAPH_JOBS, 1):
-            report(done, name, export_graph(name, folder, method, height, width))
-        return
-    threads = max(1, (os.cpu_count() or 1) // workers)
-    context = multiprocessing.get_context("spawn")  # no fork of a process whose thread pools are running
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=set_cpu_threads, initargs=(threads,)) as pool:
-        futures = {pool.submit(export_graph, name, folder, method, height, width): name for name in GRAPH_JOBS}
-        try:
-            for done, future in enumerate(as_completed(futures), 1):
-                report(done, futures[future], future.result())
-        except BaseException:
-            pool.shutdown(cancel_futures=True)
-            raise
+    """Export every graph of :data:`GRAPH_JOBS` into ``folder``, by ``workers`` processes at once
+    (:func:`export.pool.export_jobs`: default one per core; 1: in this process). On two cores the graphs export
+    in 0.55-0.6 of the time."""
+    jobs = [GraphJob(name, export_graph, (name, folder, method, height, width)) for name in GRAPH_JOBS]
+    export_jobs("export.tracking_onnx", jobs, workers)
 
 
 def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, width: int = 320,

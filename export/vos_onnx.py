@@ -1,7 +1,7 @@
 """Export FRTM (thesis ch. 5) as a deployment bundle: one graph per component, with the tracker's state (filters,
 memory, CG state) outside the graphs, run by ``runtime.vos.OnnxFRTMTracker``.
 
-    python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--check] [--check-videos N]
+    python -m export.vos_onnx --ckpt CKPT --out DIR [--height H --width W] [--workers N] [--check] [--check-videos N]
                               [--int8 [--calibration-videos N | --calibration-davis ROOT --calibration-sequences A,B]]
 
 Graphs (dynamo exporter, opset 20; H, W, the number of objects N, samples K and memory slots M dynamic):
@@ -16,6 +16,7 @@ Graphs (dynamo exporter, opset 20; H, W, the number of objects N, samples K and 
 
 The per-object graphs (init, insert, update) take one object (B = 1, grouped convolutions need a static group
 count); the runtime loops over objects. ``bundle.json`` holds the tracker settings (``FRTMSettings``).
+The graphs export side by side, one process each (``--workers``, default one per core; 1: in this process).
 ``--check`` compares the runtime's masks with the PyTorch tracker's on held-out synthetic videos (IoU per frame
 and object). ``--int8`` replaces the frame and features graphs (backbone, decoder) by static int8 QDQ versions
 calibrated on synthetic validation videos, or on real frames with ``--calibration-davis`` (DAVIS sequences of the
@@ -43,6 +44,7 @@ from export.bundle import staged_bundle
 from export.int8 import RecordingGraph, quantize_bundle_graphs
 from export.onnx import OPSET, export_onnx
 from export.parity import mask_parity
+from export.pool import GraphJob, export_jobs
 from models.vos.decoder import flip_averaged_logits
 from models.vos.memory import Memory
 from models.vos.optimizer import SteepestDescent
@@ -155,8 +157,15 @@ class UpdateGraph(nn.Module):
         return wf.to(keep), p[0].to(keep), rho.to(keep), r_prev[0].to(keep)
 
 
-def _export_graphs(tracker: FRTMTracker, out: Path, height: int, width: int) -> None:
-    """The five graphs of ``tracker`` written into ``out`` (example frames of ``height`` x ``width``)."""
+#: The graphs of a VOS bundle, heaviest first (about 41, 16, 11, 3 and 2 s for the tracker of configs/demo/frtm.yaml
+#: at 96 x 160 on one core), so that a pool of workers ends together.
+GRAPHS = ("init", "frame", "update", "features", "insert")
+
+
+@torch.no_grad()
+def export_graph(name: str, tracker: FRTMTracker, out: Path, height: int, width: int) -> None:
+    """Write the graph ``name`` (one of :data:`GRAPHS`) of ``tracker`` into ``out`` as ``name.onnx`` (example
+    frames of ``height`` x ``width``). A module-level function, so that a pool's worker process can run it."""
     c, k, d = tracker.settings.channels, tracker.settings.kernel_size, tracker.target_input.channels
     stride = tracker.target_input.stride
     h, w = -(-height // stride), -(-width // stride)
@@ -170,28 +179,35 @@ def _export_graphs(tracker: FRTMTracker, out: Path, height: int, width: int) -> 
     def rnd(*shape: int) -> torch.Tensor:
         return torch.rand(*shape, generator=g)
 
-    export_onnx(FrameGraph(tracker), (rnd(1, 3, height, width), rnd(n_obj, c, d), rnd(n_obj, c, k, k)),
-                out / "frame.onnx", ["image", "wp", "wf"], ["logits", "z"],
-                dynamic_shapes=({2: big_h, 3: big_w}, {0: nd}, {0: nd}))
-    export_onnx(FeaturesGraph(tracker), (rnd(n_aug, 3, height, width),), out / "features.onnx", ["images"],
-                ["features"], dynamic_shapes=({0: kd, 2: big_h, 3: big_w},))
-    export_onnx(InitGraph(tracker), (rnd(1, n_aug, d, h, w), rnd(1, n_aug, lh, lw), rnd(1, n_aug, lh, lw) + 0.5,
-                                     rnd(1, n_aug)),
-                out / "init.onnx", ["x", "labels", "pixel_weights", "gamma"], ["wp", "wf"],
-                dynamic_shapes=({1: kd, 3: fh, 4: fw}, {1: kd, 2: lbh, 3: lbw}, {1: kd, 2: lbh, 3: lbw}, {1: kd}),
-                optimize=False)  # the unrolled optimiser: see export_onnx
-    mem = (rnd(1, n_mem, c, h, w), rnd(1, n_mem, lh, lw), rnd(1, n_mem, lh, lw), rnd(1, n_mem),
-           torch.tensor([1]))
-    export_onnx(InsertGraph(tracker), (*mem, rnd(1, c, h, w), rnd(1, lh, lw)), out / "insert.onnx",
-                ["features", "labels", "pixel_weights", "weights", "newest", "z", "label"],
-                ["features_out", "labels_out", "pixel_weights_out", "weights_out", "newest_out"],
-                dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md},
-                                None, {2: fh, 3: fw}, {1: lbh, 2: lbw}))
-    export_onnx(UpdateGraph(tracker), (*mem[:4], rnd(1, c, k, k), rnd(1, c, k, k), torch.ones(1), rnd(1, c, k, k)),
-                out / "update.onnx", ["features", "labels", "pixel_weights", "weights", "wf", "p", "rho", "r_prev"],
-                ["wf_out", "p_out", "rho_out", "r_prev_out"],
-                dynamic_shapes=({1: md, 3: fh, 4: fw}, {1: md, 2: lbh, 3: lbw}, {1: md, 2: lbh, 3: lbw}, {1: md},
-                                None, None, None, None), optimize=False)
+    path = out / f"{name}.onnx"
+    memory = {"features": {1: md, 3: fh, 4: fw}, "labels": {1: md, 2: lbh, 3: lbw},
+              "pixel_weights": {1: md, 2: lbh, 3: lbw}, "weights": {1: md}}
+
+    def mem() -> tuple[torch.Tensor, ...]:
+        return rnd(1, n_mem, c, h, w), rnd(1, n_mem, lh, lw), rnd(1, n_mem, lh, lw), rnd(1, n_mem)
+
+    if name == "frame":
+        export_onnx(FrameGraph(tracker), (rnd(1, 3, height, width), rnd(n_obj, c, d), rnd(n_obj, c, k, k)), path,
+                    ["image", "wp", "wf"], ["logits", "z"], dynamic_shapes=({2: big_h, 3: big_w}, {0: nd}, {0: nd}))
+    elif name == "features":
+        export_onnx(FeaturesGraph(tracker), (rnd(n_aug, 3, height, width),), path, ["images"], ["features"],
+                    dynamic_shapes=({0: kd, 2: big_h, 3: big_w},))
+    elif name == "init":
+        export_onnx(InitGraph(tracker), (rnd(1, n_aug, d, h, w), rnd(1, n_aug, lh, lw), rnd(1, n_aug, lh, lw) + 0.5,
+                                         rnd(1, n_aug)), path, ["x", "labels", "pixel_weights", "gamma"], ["wp", "wf"],
+                    dynamic_shapes=({1: kd, 3: fh, 4: fw}, {1: kd, 2: lbh, 3: lbw}, {1: kd, 2: lbh, 3: lbw}, {1: kd}),
+                    optimize=False)  # the unrolled optimiser: see export_onnx
+    elif name == "insert":
+        export_onnx(InsertGraph(tracker), (*mem(), torch.tensor([1]), rnd(1, c, h, w), rnd(1, lh, lw)), path,
+                    [*memory, "newest", "z", "label"],
+                    ["features_out", "labels_out", "pixel_weights_out", "weights_out", "newest_out"],
+                    dynamic_shapes=(*memory.values(), None, {2: fh, 3: fw}, {1: lbh, 2: lbw}))
+    elif name == "update":
+        export_onnx(UpdateGraph(tracker), (*mem(), rnd(1, c, k, k), rnd(1, c, k, k), torch.ones(1), rnd(1, c, k, k)),
+                    path, [*memory, "wf", "p", "rho", "r_prev"], ["wf_out", "p_out", "rho_out", "r_prev_out"],
+                    dynamic_shapes=(*memory.values(), None, None, None, None), optimize=False)
+    else:
+        raise InputError(f"unknown VOS graph {name!r}; choose one of {', '.join(GRAPHS)}")
 
 
 def _sections(tracker: FRTMTracker) -> dict:
@@ -222,8 +238,10 @@ def videos_jf(tracker: OnnxFRTMTracker, videos: Videos, desc: str = "J&F") -> fl
 
 @torch.no_grad()
 def export_bundle(tracker: FRTMTracker, out: str | Path, height: int = 96, width: int = 160, int8: bool = False,
-                  calibration: Videos | None = None, held_out: Videos | None = None) -> dict:
-    """Write the VOS bundle of ``tracker`` to the folder ``out`` (example frames ``height`` x ``width``). With
+                  calibration: Videos | None = None, held_out: Videos | None = None,
+                  workers: int | None = None) -> dict:
+    """Write the VOS bundle of ``tracker`` to the folder ``out`` (example frames ``height`` x ``width``), its graphs
+    exported by ``workers`` processes at once (:func:`export.pool.export_jobs`; default one per core). With
     ``int8`` the frame and features graphs are quantized, calibrated on the ``calibration`` videos (name, frames
     uint8 (T, 3, H, W), labels (T, H, W)), and J&F of both versions on the ``held_out`` videos goes into the
     manifest; returns that int8 report (empty without ``int8``)."""
@@ -233,7 +251,8 @@ def export_bundle(tracker: FRTMTracker, out: str | Path, height: int = 96, width
     if int8 and (not calibration or not held_out):
         raise InputError("an int8 export needs calibration and held-out videos")
     with staged_bundle(out) as folder, tempfile.TemporaryDirectory() as tmp:
-        _export_graphs(tracker, folder, height, width)
+        export_jobs("export.vos_onnx", [GraphJob(name, export_graph, (name, tracker, folder, height, width))
+                                        for name in GRAPHS], workers)
         write_manifest(folder, "vos", OPSET, **sections)
         if int8:
             fp32 = Path(tmp) / "fp32"
@@ -259,6 +278,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", required=True, help="bundle folder to write")
     p.add_argument("--height", type=int, default=96, help="example frame height (the graphs accept any)")
     p.add_argument("--width", type=int, default=160, help="example frame width")
+    p.add_argument("--workers", type=int, default=None,
+                   help="graphs exported at once, one process each (default: one per core)")
     p.add_argument("--check", action="store_true", help="compare the runtime's masks with PyTorch's")
     p.add_argument("--check-videos", type=int, default=4,
                    help="held-out synthetic test videos for --check and the int8 report (the checkpoint's data "
@@ -291,7 +312,8 @@ def _export_and_check(args: argparse.Namespace) -> None:
     elif args.int8:
         calibration = synthetic_videos("val", args.calibration_videos, 0, n_frames=args.check_frames,
                                        **synthetic_test_settings(args.ckpt))
-    report = export_bundle(tracker, args.out, args.height, args.width, args.int8, calibration, held_out)
+    report = export_bundle(tracker, args.out, args.height, args.width, args.int8, calibration, held_out,
+                           args.workers)
     print(f"wrote {args.out}")
     if args.check:
         ious = np.array(mask_parity(tracker, OnnxFRTMTracker(args.out), held_out))
