@@ -3,7 +3,7 @@ HorizonSegmenter and the filter-bank matcher.
 
     python -m export.horizon_onnx --finder F.ckpt --segmenter S.ckpt --out DIR [--height 64 --width 512]
         [--input-width 512] [--bank BANK | --bins 1024 --frequencies K --threshold-deg 1] [--band-deg 4]
-        [--exclude 11] [--drop-harmonics 0] [--check] [--int8 [--calibration 32]]
+        [--exclude 11] [--drop-harmonics 0] [--workers N] [--check] [--int8 [--calibration 32]]
 
 Graphs (dynamo, opset 20; batch and width dynamic, heights fixed by ``--height`` and ``--width``, the panoramas'
 size, and ``--input-width``, the networks' input width; widths must stay multiples of the backbone stride):
@@ -17,6 +17,7 @@ size, and ``--input-width``, the networks' input width; widths must stay multipl
   ``heading`` (B, L) (``export.localization_onnx``); N, K and the normalisation threshold come from ``--bank``
   (or ``--bins``, ``--frequencies``, ``--threshold-deg``) and must be those of the banks it is used with.
 
+The graphs export side by side, one process each (``--workers``, default one per core; 1: in this process).
 ``--check`` compares the chain in onnxruntime with PyTorch on rendered panoramas of the bundle's size (pitch and
 roll in degrees, profiles in px). ``--int8`` replaces the finder and the segmenter by static int8 QDQ versions
 calibrated on ``--calibration`` rendered panoramas (``export.int8``) and stores an accuracy report in the
@@ -44,6 +45,7 @@ from export.bundle import staged_bundle
 from export.int8 import RecordingGraph, quantize_bundle_graphs
 from export.localization_onnx import export_matcher
 from export.onnx import OPSET, export_onnx
+from export.pool import GraphJob, export_jobs
 from models.builders import horizon_network
 from runtime.bundle import Bundle, write_manifest
 from runtime.horizon import HorizonChain, read_panorama
@@ -124,11 +126,13 @@ def export_bundle(
     out: str | Path, finder: nn.Module, segmenter: nn.Module, height: int = 64, width: int = 512,
     input_width: int = 512, bins: int = 1024, frequencies: int | None = None, threshold_deg: float = 1.0,
     band_deg: float = 4.0, exclude: int = 11, drop_harmonics: int = 0, int8: bool = False, calibration: int = 32,
-    check: bool = False,
+    check: bool = False, workers: int | None = None,
 ) -> dict:
     """Write the horizon bundle of the networks ``finder`` (``horizon_finder``) and ``segmenter``
     (``horizon_segmenter``) for panoramas of ``height`` x ``width`` and banks of ``bins`` bins, ``frequencies``
-    stored frequencies and ``threshold_deg``; returns the ``--check`` parity and the int8 report (empty without)."""
+    stored frequencies and ``threshold_deg``, its graphs exported by ``workers`` processes at once
+    (:func:`export.pool.export_jobs`; default one per core); returns the ``--check`` parity and the int8 report
+    (empty without)."""
     if width < 2 * height or input_width % 32 or input_width < 64:
         raise InputError(f"panoramas must be at least twice as wide as high ({width} x {height}) and --input-width a "
                          f"multiple of 32 of at least 64 ({input_width})")
@@ -138,10 +142,13 @@ def export_bundle(
         raise InputError(f"--frequencies must be in [2, {bins // 2 + 1}], got {frequencies}")
     report: dict = {}
     with staged_bundle(out) as folder, tempfile.TemporaryDirectory() as tmp:
-        export_horizon("finder", finder, folder / "finder.onnx", input_height, input_width)
-        export_horizon("segmenter", segmenter, folder / "segmenter.onnx", input_height, input_width)
-        export_horizon("level", horizon_network("level"), folder / "level.onnx", height, width)
-        export_matcher(folder / "matcher.onnx", bins, frequencies, band_deg, exclude, threshold_deg, drop_harmonics)
+        jobs = [GraphJob(f"{which}.onnx", export_horizon, (which, model, folder / f"{which}.onnx", h, w))
+                for which, model, h, w in (("finder", finder, input_height, input_width),
+                                           ("segmenter", segmenter, input_height, input_width),
+                                           ("level", horizon_network("level"), height, width))]
+        jobs.append(GraphJob("matcher.onnx", export_matcher, (folder / "matcher.onnx", bins, frequencies, band_deg,
+                                                              exclude, threshold_deg, drop_harmonics)))
+        export_jobs("export.horizon_onnx", jobs, workers)
         sections = {
             "input": {"image": "(B, 3, H, W) RGB float32 in [0, 1], 360 degrees, column 0 forward",
                       "panorama_height": height, "input_width": input_width, "input_height": input_height,
@@ -198,6 +205,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--band-deg", type=float, default=4.0, help="heading search band around the compass")
     parser.add_argument("--exclude", type=int, default=11, help="PSR exclusion window, bins")
     parser.add_argument("--drop-harmonics", type=int, default=0, help="ignore the profiles' harmonics 1..H")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="graphs exported at once, one process each (default: one per core)")
     parser.add_argument("--check", action="store_true", help="compare onnxruntime with PyTorch on rendered panoramas")
     parser.add_argument("--int8", action="store_true", help="int8 finder and segmenter, with an accuracy report")
     parser.add_argument("--calibration", type=int, default=32, help="rendered panoramas to calibrate int8 on")
@@ -209,7 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         bins, frequencies, threshold = matcher_settings(args.bank, args.bins, args.frequencies, args.threshold_deg)
         report = export_bundle(args.out, finder, segmenter, args.height, args.width, args.input_width, bins,
                                frequencies, threshold, args.band_deg, args.exclude, args.drop_harmonics, args.int8,
-                               args.calibration, args.check)
+                               args.calibration, args.check, args.workers)
         print(f"wrote {args.out} (model {Bundle(args.out, 'horizon').manifest['model_hash'][:12]})")
         if "check" in report:
             c = report["check"]
