@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 import torch
+import yaml
 
 import train
 from data.horizon.dataset import DatasetSettings, write_dataset
@@ -138,6 +139,39 @@ def test_every_config_parses(config: str, capsys) -> None:
     with pytest.raises(SystemExit) as stop:
         train.main(["fit", "--config", config, "--print_config"])
     assert stop.value.code in (0, None) and "class_path" in capsys.readouterr().out
+
+
+#: The CPU training configs of the VOS chapters, and whether their data is DAVIS from ../shared/data.
+CPU_VOS_CONFIGS = {"configs/demo/frtm.yaml": False, "configs/frtm_lite0_synthetic_cpu.yaml": False,
+                   "configs/frtm_davis2016_cpu.yaml": True, "configs/frtm_lite0_davis2016_cpu.yaml": True,
+                   "configs/davos_davis2016_cpu.yaml": True}
+
+
+@pytest.mark.parametrize("config", sorted(CPU_VOS_CONFIGS))
+def test_cpu_vos_configs_deliver_training_batches(config: str, request) -> None:
+    """The data module of each CPU config, as the config builds it (on its first three training sequences), gives
+    its first two training batches (every source, mirroring, crops and zooms as configured): a sample those
+    settings cannot make fails here, not minutes into a fit."""
+    from jsonargparse import ArgumentParser
+    from lightning.pytorch import LightningDataModule
+
+    if CPU_VOS_CONFIGS[config]:
+        request.getfixturevalue("shared_data")
+    parser = ArgumentParser()
+    parser.add_subclass_arguments(LightningDataModule, "data")
+    data = yaml.safe_load(Path(config).read_text())["data"]
+    data["init_args"]["num_workers"] = 0
+    for key, keep in (("train_sequences", 3), ("val_sequences", 1)):  # fewer videos to read, the same settings
+        if key in data["init_args"]:
+            data["init_args"][key] = data["init_args"][key][:keep]
+    module = parser.instantiate_classes(parser.parse_object({"data": data})).data
+    module.setup("fit")
+    batches, args = iter(module.train_dataloader()), data["init_args"]
+    for _ in range(2):
+        batch = next(batches)
+        b = batch["ref_image"].shape[0]
+        assert b == args["batch_size"] and batch["test_masks"].shape[:2] == (b, args["n_test_frames"])
+        assert torch.isfinite(batch["ref_image"]).all() and (batch["ref_mask"].flatten(1).sum(1) > 0).all()
 
 
 @pytest.mark.parametrize("overlay", sorted(str(p) for p in Path("configs/ablations").glob("*.yaml")))
