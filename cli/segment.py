@@ -22,7 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      "same --out resumes after the last finished sequence)")
     src.add_argument("--split", default="val", help="DAVIS ImageSets split (default val)")
     src.add_argument("--resolution", default="480p", help="DAVIS resolution folder (default 480p)")
-    src.add_argument("--max-frames", type=int, help="DAVIS: cut sequences to this many frames")
+    src.add_argument("--max-frames", type=int, help="cut the video, or each DAVIS sequence, to this many frames")
     model = p.add_argument_group("model: exactly one")
     model.add_argument("--ckpt", help="FRTMSegmentation or DAVOSSegmentation checkpoint from train.py (DAVOS overlays "
                        "show the regenerated distractor maps beside the masks)")
@@ -44,12 +44,14 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give exactly one of --ckpt CKPT or --onnx DIR")
     if args.onnx and (args.overlay or args.annotations):
         raise InputError("--overlay and --annotations need --ckpt (the runtime tracks the first mask's objects)")
+    if args.max_frames is not None and args.max_frames < 1:
+        raise InputError(f"--max-frames must be at least 1, got {args.max_frames}")
     if args.davis is None:
         if args.onnx:
             from runtime.video_loop import segment_folder as runtime_segment_folder
 
             n, seconds = runtime_segment_folder(_runtime_tracker(args.onnx), args.video, args.mask, args.out,
-                                                progress=True)
+                                                progress=True, max_frames=args.max_frames)
             print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
             return 0
         from data.vos.io import list_frames
@@ -57,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         check_first_frame(list_frames(args.video), args.mask)  # bad input fails before the model loads
         tracker = vos_tracker(args.ckpt)
         n, seconds = segment_folder(tracker, args.video, args.mask, args.out, args.overlay,
-                                    annotations=args.annotations)
+                                    annotations=args.annotations, max_frames=args.max_frames)
         print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS); masks in {args.out}")
         return 0
     tracker = _runtime_tracker(args.onnx) if args.onnx else vos_tracker(args.ckpt)

@@ -132,11 +132,11 @@ def _resize_labels(labels: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 
 
 def segment_folder(tracker: NumpyVideoLoop, video: str | Path, mask_path: str | Path, out: str | Path,
-                   progress: bool = False) -> tuple[int, float]:
-    """Segment the frames of ``video`` from the first-frame mask and write ``out/<frame>.png`` palette masks, all
-    moved into place only when every frame was segmented (``progress``: a progress line on stderr). Returns
-    (frames, seconds)."""
-    frames = list_frames(video)
+                   progress: bool = False, max_frames: int | None = None) -> tuple[int, float]:
+    """Segment the frames of ``video`` (the first ``max_frames``; None: all) from the first-frame mask and write
+    ``out/<frame>.png`` palette masks, all moved into place only when every frame was segmented (``progress``: a
+    progress line on stderr). Returns (frames, seconds)."""
+    frames = list_frames(video)[:max_frames]
     mask = read_mask(mask_path)
     first = read_frame(frames[0])
     if mask.shape != first.shape[1:]:

@@ -216,6 +216,8 @@ CASES = [
     ("segment/other-task-onnx", "infer", [*SEGMENT, "--video", "{video}", "--mask", "{mask}", "--onnx",
                                           "{other_task_onnx}"], "{other_task_onnx}"),
     ("segment/missing-davis", "infer", [*SEGMENT, "--davis", "{missing}", "--ckpt", "{frtm_ckpt}"], "{missing}"),
+    ("segment/zero-max-frames", "infer", [*SEGMENT, "--video", "{video}", "--mask", "{mask}", "--ckpt",
+                                          "{frtm_ckpt}", "--max-frames", "0"], "--max-frames"),
     ("segment/unwritable-out", "infer", ["segment", "--video", "{video}", "--mask", "{mask}", "--ckpt",
                                          "{frtm_ckpt}", "--out", "{unwritable}"], "{unwritable}"),
     ("build-bank/missing-dem", "infer", [*BANK, "--dem", "{missing}.tif"], "{missing}.tif"),

@@ -103,17 +103,20 @@ def later_masks(frames: list[Path], annotations: str | Path, first: torch.Tensor
 
 def segment_folder(
     tracker: VideoLoop, video: str | Path, mask_path: str | Path, out: str | Path, overlay: str | None = None,
-    fps: float = 24.0, annotations: str | Path | None = None,
+    fps: float = 24.0, annotations: str | Path | None = None, max_frames: int | None = None,
 ) -> tuple[int, float]:
-    """Segment the frames of ``video`` from the first-frame mask; write ``out/<frame>.png`` palette masks and
-    optionally an overlay video (twice as wide for DAVOS: the regenerated distractor maps beside the masks).
-    Objects that appear later are given by ``annotations`` (``later_masks``). Returns (frames, seconds).
+    """Segment the frames of ``video`` (the first ``max_frames``; None: all) from the first-frame mask; write
+    ``out/<frame>.png`` palette masks and optionally an overlay video (twice as wide for DAVOS: the regenerated
+    distractor maps beside the masks). Objects that appear later are given by ``annotations`` (``later_masks``).
+    Returns (frames, seconds).
 
     The masks (and the video) are written under hidden temporary names and moved into place when every frame
     was segmented, so a bad frame half-way leaves no masks behind."""
     frames = list_frames(video)
     mask = check_first_frame(frames, mask_path)
     masks = {0: mask, **(later_masks(frames, annotations, mask) if annotations is not None else {})}
+    frames = frames[:max_frames]
+    masks = {t: m for t, m in masks.items() if t < len(frames)}
     final = writable_folder(out)
     staging = final.with_name(f".{final.name}.partial")
     shutil.rmtree(staging, ignore_errors=True)

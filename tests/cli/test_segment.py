@@ -47,6 +47,25 @@ def test_segment_writes_palette_masks(video: Path, tmp_path: Path) -> None:
     assert (tmp_path / "overlay.mp4").stat().st_size > 0
 
 
+def test_max_frames_cuts_the_video(video: Path, davos_ckpt: Path, tmp_path: Path, capsys) -> None:
+    """--max-frames 2 writes the first two masks of the whole run (the trackers are causal); a later annotation
+    beyond the cut is no error; 0 frames is refused."""
+    args = ["segment", "--video", str(video / "frames"), "--mask", str(video / "first.png")]
+    (tmp_path / "later").mkdir()
+    write_mask(tmp_path / "later" / "00003.png", read_mask(video / "first.png"))
+    for ckpt in (video / "model.ckpt", davos_ckpt):
+        whole, cut = tmp_path / f"{ckpt.stem}_whole", tmp_path / f"{ckpt.stem}_cut"
+        assert infer.main([*args, "--ckpt", str(ckpt), "--out", str(whole)]) == 0
+        assert infer.main([*args, "--ckpt", str(ckpt), "--out", str(cut), "--max-frames", "2",
+                           "--annotations", str(tmp_path / "later")]) == 0
+        assert sorted(p.name for p in cut.iterdir()) == ["00000.png", "00001.png"]
+        assert all(torch.equal(read_mask(cut / name), read_mask(whole / name)) for name in ("00000.png", "00001.png"))
+    capsys.readouterr()
+    assert infer.main([*args, "--ckpt", str(video / "model.ckpt"), "--out", str(tmp_path / "o"), "--max-frames",
+                       "0"]) == 2
+    assert "--max-frames must be at least 1, got 0" in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
 @pytest.mark.parametrize(
     "mask, extra, message",
     [
@@ -166,5 +185,8 @@ def test_a_bundle_segments_through_the_runtime(video: Path, vos_setup: dict, tmp
     runtime_segment_folder(OnnxFRTMTracker(vos_setup["bundle"]), video / "frames", video / "first.png",
                            tmp_path / "runtime")
     assert tree_bytes(tmp_path / "cli") == tree_bytes(tmp_path / "runtime") and len(tree_bytes(tmp_path / "cli")) == 4
+    assert infer.main([*args, "--out", str(tmp_path / "cut"), "--max-frames", "3"]) == 0
+    whole, cut = tree_bytes(tmp_path / "cli"), tree_bytes(tmp_path / "cut")
+    assert len(cut) == 3 and all(cut[name] == whole[name] for name in cut)
     assert infer.main([*args, "--out", str(tmp_path / "o"), "--overlay", str(tmp_path / "o.mp4")]) == 2
     assert "need --ckpt" in capsys.readouterr().err
