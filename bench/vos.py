@@ -22,10 +22,10 @@ trackers at 240p and 480p (synthetic frames) for every model given and, side by 
 models of any ``--speed-config`` YAML files. Without ``--ckpt`` the FRTM system is built untrained from
 ``--backbone``/``--weights``/``--feature-layer``/``--feature-norm`` and the paper's tracker settings: with
 ``--weights imagenet`` the ``target_model_only`` row measures the pretrained features alone (the decoder is
-random, so the ``frtm`` row means nothing then). ``--onnx BUNDLE`` adds the deployment runtime (``runtime.vos``:
-the bundle's graphs in onnxruntime with ``--threads`` threads, the host loop in numpy) as method
-``onnx:<bundle folder name>``, in the J&F rows and, with ``--speed``, in the speed table of the same run.
-Prints one JSON object with ``--json``, else a table.
+random, so the ``frtm`` row means nothing then). ``--onnx BUNDLE`` adds the deployment runtime of a VOS or
+DAVOS bundle (``runtime.vos`` or ``runtime.davos``: the bundle's graphs in onnxruntime with ``--threads``
+threads, the host loop in numpy) as method ``onnx:<bundle folder name>``, in the J&F rows and, with
+``--speed``, in the speed table of the same run. Prints one JSON object with ``--json``, else a table.
 """
 
 from __future__ import annotations
@@ -57,10 +57,12 @@ FRTM_METHODS = ("frtm", "target_model_only")
 
 
 def onnx_tracker(bundle: str) -> Callable[[], object]:
-    """A factory of the runtime's tracker on ``bundle`` (onnxruntime with torch's thread count)."""
-    from runtime.vos import OnnxFRTMTracker
+    """A factory of the runtime's tracker on ``bundle``, a VOS (FRTM) or DAVOS bundle (onnxruntime with torch's
+    thread count); a bundle of another task is an ``InputError`` now, not at the first video."""
+    from runtime.segmentation import segmentation_tracker_type
 
-    return lambda: OnnxFRTMTracker(bundle, threads=torch.get_num_threads())
+    tracker = segmentation_tracker_type(bundle)
+    return lambda: tracker(bundle, threads=torch.get_num_threads())
 
 
 def frame_curves(pred: torch.Tensor, labels: torch.Tensor) -> dict[str, dict[str, list[float]]]:
@@ -372,7 +374,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="with --speed: also time the (untrained) models of these train.py configs, in the same run")
     p.add_argument("--speed-frames", type=int, default=24, help="frames of the --speed video (default 24)")
     p.add_argument("--onnx", nargs="+", action="extend", metavar="BUNDLE",
-                   help="also run these VOS bundles in the deployment runtime (methods onnx:<folder>)")
+                   help="also run these VOS or DAVOS bundles in the deployment runtime (methods onnx:<folder>)")
     p.add_argument("--threads", type=int, help="torch intra-op threads (1 is much faster on an oversubscribed CPU)")
     p.add_argument("--per-frame", action="store_true",
                    help="also give each object's per-frame J and predicted / true area (fraction of the frame)")

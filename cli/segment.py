@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
 
     from models.builders import vos_tracker
     from models.vos.inference import check_first_frame, segment_davis, segment_folder
+    from runtime.segmentation import segmentation_tracker
 
     if args.davis is None and (args.video is None or args.mask is None):
         raise InputError("give --video DIR --mask FIRST.png, or --davis ROOT --split NAME")
@@ -50,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
         if args.onnx:
             from runtime.video_loop import segment_folder as runtime_segment_folder
 
-            n, seconds = runtime_segment_folder(_runtime_tracker(args.onnx), args.video, args.mask, args.out,
+            n, seconds = runtime_segment_folder(segmentation_tracker(args.onnx), args.video, args.mask, args.out,
                                                 progress=True, max_frames=args.max_frames)
             print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS, onnxruntime); masks in {args.out}")
             return 0
@@ -62,17 +63,10 @@ def run(args: argparse.Namespace) -> int:
                                     annotations=args.annotations, max_frames=args.max_frames)
         print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS); masks in {args.out}")
         return 0
-    tracker = _runtime_tracker(args.onnx) if args.onnx else vos_tracker(args.ckpt)
+    tracker = segmentation_tracker(args.onnx) if args.onnx else vos_tracker(args.ckpt)
     job = {"model": str(Path(args.ckpt or args.onnx).resolve())}
     result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames, job)
     print(json.dumps({"J&F": result["J&F-Mean"], "J": result["J-Mean"], "F": result["F-Mean"], "FPS": fps}))
     return 0
 
 
-def _runtime_tracker(bundle: str):
-    """The runtime's tracker of a ``vos`` (FRTM) or ``davos`` bundle."""
-    from runtime.bundle import bundle_task
-    from runtime.davos import OnnxDAVOSTracker
-    from runtime.vos import OnnxFRTMTracker
-
-    return OnnxDAVOSTracker(bundle) if bundle_task(bundle) == "davos" else OnnxFRTMTracker(bundle)

@@ -3,7 +3,7 @@ side by side with FRTM, tracker overrides, method checks and the speed table."""
 
 import pytest
 
-from bench.vos import parse_args, run, run_method
+from bench.vos import load_videos, parse_args, run, run_method
 from core.errors import InputError
 from data.vos.datamodule import synthetic_videos
 from models.builders import davos_system, frtm_system
@@ -128,3 +128,17 @@ def test_plot_frames_writes_the_curves_and_implies_per_frame(tmp_path, capsys) -
     assert len(obj["frames"]["j"]) == 4 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["--speed", "--methods", "first_frame_copy", "--plot-frames", str(tmp_path / "none.png")]) == 2
     assert "needs videos" in capsys.readouterr().err and not (tmp_path / "none.png").exists()
+
+
+@pytest.mark.slow  # uses an exported bundle
+def test_a_davos_bundle_runs_as_a_method_like_its_pytorch_tracker(davos_setup) -> None:
+    args = parse_args(["--lookalike", "--videos", "1", "--objects", "2", "--max-frames", "6", "--height", "64",
+                       "--width", "96", "--methods", "first_frame_copy", "--onnx", str(davos_setup["bundle"]),
+                       "--threads", "1"])
+    result = run(args)
+    row = result["methods"][f"onnx:{davos_setup['bundle'].name}"]
+    assert row["fps"] > 0 and row["ms_per_frame"]["frame"] > 0
+    _, videos = load_videos(args)
+    reference = run_method(lambda: davos_setup["tracker"], videos, "davos", False)
+    assert row["jf"] == pytest.approx(reference["jf"], abs=0.01)
+    assert row["jf"] != pytest.approx(result["methods"]["first_frame_copy"]["jf"], abs=0.01)
