@@ -59,6 +59,7 @@ import json
 import math
 import sys
 import tempfile
+import textwrap
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -444,11 +445,17 @@ def plot_conditions(result: dict, path: str | Path) -> None:
     plt.close(fig)
 
 
+def _wrapped(name: str, width: int) -> str:
+    """``name`` broken into lines of at most ``width`` characters after its underscores (dataset names have no
+    spaces)."""
+    return "\n".join(line.replace("_ ", "_") for line in textwrap.wrap(name.replace("_", "_ "), width))
+
+
 def plot(result: dict, path: str | Path) -> None:
     """EPE distributions (log-spaced histogram, mean inlier EPE in the legend) and precision curves (value at 3 px
-    in the legend) per dataset, like thesis figure 3.3, four datasets to a row; with several datasets also the
-    per-condition bars
-    (:func:`plot_conditions`) beside it, as ``<path stem>_conditions.png``."""
+    in the legend) per dataset, like thesis figure 3.3, four datasets to a row (long dataset names wrapped in the
+    titles); with several datasets also the per-condition bars (:func:`plot_conditions`) beside it, as
+    ``<path stem>_conditions.png``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -472,8 +479,10 @@ def plot(result: dict, path: str | Path) -> None:
             hist.hist(epe, bins, histtype="step", density=False, label=f"{method} ({m['inlier_epe_mean']:.2f})")
             precision = [(tracked & (epe < t)).mean() for t in taus]
             curve.plot(taus, precision, label=f"{method} ({m['precision_at']['3']:.3f})")
-        hist.set(xscale="log", xlabel="EPE (px)", ylabel="points", title=f"{name}: EPE")
-        curve.set(xlabel="threshold (px)", ylabel="precision", title=f"{name}: precision", ylim=(0, 1))
+        hist.set(xscale="log", xlabel="EPE (px)", ylabel="points")
+        curve.set(xlabel="threshold (px)", ylabel="precision", ylim=(0, 1))
+        for ax, quantity in ((hist, "EPE"), (curve, "precision")):
+            ax.set_title(f"{_wrapped(name, 30)}: {quantity}", fontsize=9)
         hist.legend(fontsize=7)
         curve.legend(fontsize=7, loc="lower right")
     fig.tight_layout()

@@ -329,3 +329,12 @@ def test_homography_under_a_stress_condition(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert set(out["datasets"]) == {f"homography_stress_jpeg_{tmp_path.name}_img"}
     assert "homography_stress_jpeg" in out["summary"]
+
+
+@pytest.mark.parametrize(("name", "lines"), [
+    ("homography_bear_fixed_stress_low_contrast", ["homography_bear_", "fixed_stress_low_", "contrast"]),
+    ("roundtrip_dog-agility", ["roundtrip_dog-agility"]),
+    ("sintel_alley_1_final_stress_dark", ["sintel_alley_1_", "final_stress_dark"]),
+])
+def test_plot_titles_wrap_long_names_after_underscores(name: str, lines: list[str]) -> None:
+    assert point_tracking._wrapped(name, 22).split("\n") == lines
