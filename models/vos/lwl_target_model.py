@@ -6,7 +6,8 @@ projected, normalised backbone features, predicting the label encoding E(y) of a
 
 E_s and W_s are the label encoding and spatial weights of sample s (``LabelEncoder``), gamma_s its memory
 weight and lambda the learnt regularisation. ``apply_filter`` is a grouped convolution (one group per problem)
-and ``filter_gradient`` its adjoint in the filter (a convolution of the features by the residual), so the
+and ``filter_gradient`` its adjoint in the filter (a convolution of the features by the residual; in an export one
+matrix product of the features with the residual's shifted windows), so the
 steepest-descent trainer needs no autograd: it runs under ``torch.inference_mode``, exports to ONNX (with one
 problem per graph call) and stays differentiable for meta-learning.
 
@@ -23,7 +24,9 @@ import torch.nn.functional as F
 from torch import nn
 
 from core.errors import InputError
+from models.export_mode import exporting
 from models.vos.target_features import normalize_features
+from models.vos.target_model import tap_windows
 
 
 def apply_filter(x: torch.Tensor, tau: torch.Tensor) -> torch.Tensor:
@@ -41,6 +44,10 @@ def filter_gradient(x: torch.Tensor, q: torch.Tensor, size: int) -> torch.Tensor
     x + dx - k//2] (zero outside)."""
     b, s, p, h, w = x.shape
     k = q.shape[2]
+    if exporting():  # onnxruntime runs the convolution by the (h, w) residual about 3x slower than this product
+        windows = tap_windows(q.reshape(b * s, k, h, w), size).reshape(b * s, k * size * size, h * w)
+        g = torch.matmul(windows, x.reshape(b * s, p, h * w).transpose(1, 2))  # (B*S, K*k*k, P)
+        return g.view(b, s, k, size, size, p).sum(1).permute(0, 1, 4, 2, 3)
     inputs = x.permute(2, 0, 1, 3, 4).reshape(p, b * s, h, w)
     kernels = q.transpose(1, 2).reshape(b * k, s, h, w)
     out = F.conv2d(inputs, kernels, padding=size // 2, groups=b)  # (P, B*K, k, k)

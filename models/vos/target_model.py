@@ -39,7 +39,7 @@ def project_grad(gz: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
     return torch.einsum("bkchw,bkdhw->bcd", gz, x)
 
 
-def _tap_windows(q: torch.Tensor, size: int) -> torch.Tensor:
+def tap_windows(q: torch.Tensor, size: int) -> torch.Tensor:
     """Q[..., (dy, dx), y, x] = q[..., y + p - dy, x + p - dx] (zero outside), p = size // 2, for every tap of a
     size x size filter: (..., h, w) -> (..., size^2, h, w)."""
     h, w = q.shape[-2:]
@@ -67,7 +67,7 @@ def apply_filter_transpose(q: torch.Tensor, wf: torch.Tensor) -> torch.Tensor:
     c = wf.shape[1]
     pad = wf.shape[-1] // 2
     if q.dtype == torch.float64:  # g[c, y, x] = sum_(dy, dx) q[y + pad - dy, x + pad - dx] W_f[c, dy, dx]
-        return torch.einsum("bkqhw,bcq->bkchw", _tap_windows(q, wf.shape[-1]), wf.flatten(2))
+        return torch.einsum("bkqhw,bcq->bkchw", tap_windows(q, wf.shape[-1]), wf.flatten(2))
     out = F.conv_transpose2d(q.transpose(0, 1), wf, padding=pad, groups=b)
     return out.reshape(k, b, c, h, w).transpose(0, 1)
 
@@ -77,7 +77,7 @@ def filter_grad(z: torch.Tensor, q: torch.Tensor, size: int) -> torch.Tensor:
     b, k, c, h, w = z.shape
     pad = size // 2
     if z.dtype == torch.float64:  # g[c, dy, dx] = sum_(k, y, x) z[c, y, x] q[y + pad - dy, x + pad - dx]
-        return torch.einsum("bkchw,bkqhw->bcq", z, _tap_windows(q, size)).view(b, c, size, size)
+        return torch.einsum("bkchw,bkqhw->bcq", z, tap_windows(q, size)).view(b, c, size, size)
     out = F.conv2d(z.permute(2, 0, 1, 3, 4).reshape(c, b * k, h, w), q, padding=pad, groups=b)
     return out.transpose(0, 1)
 

@@ -5,6 +5,7 @@ import torch
 import torch.nn.functional as F
 
 from core.errors import InputError
+from models.vos import lwl_target_model
 from models.vos.lwl_target_model import FeatureProjection, LWLResidual, apply_filter, check_problem, filter_gradient
 
 
@@ -27,11 +28,14 @@ def test_apply_filter_equals_per_problem_convolutions(dtype: torch.dtype, size: 
     torch.testing.assert_close(apply_filter(x, tau), ref, rtol=tol, atol=tol)
 
 
+@pytest.mark.parametrize("export_form", [False, True])
 @pytest.mark.parametrize("size", [1, 3, 5])
-def test_filter_gradient_is_the_adjoint_in_the_filter(size: int) -> None:
+def test_filter_gradient_is_the_adjoint_in_the_filter(size: int, export_form: bool, monkeypatch) -> None:
+    """Both forms (the convolution; in an export the product with the residual's windows) against autograd."""
     x, tau, enc, *_ = _problem(1, size=size)
     tau = tau.requires_grad_(True)
     (ref,) = torch.autograd.grad((apply_filter(x, tau) * enc).sum(), tau)
+    monkeypatch.setattr(lwl_target_model, "exporting", lambda: export_form)
     torch.testing.assert_close(filter_gradient(x, enc, size), ref, rtol=1e-12, atol=1e-12)
 
 
