@@ -37,7 +37,6 @@ def run(args: argparse.Namespace) -> int:
 
     from models.builders import vos_tracker
     from models.vos.inference import check_first_frame, segment_davis, segment_folder
-    from runtime.segmentation import segmentation_tracker
 
     if args.davis is None and (args.video is None or args.mask is None):
         raise InputError("give --video DIR --mask FIRST.png, or --davis ROOT --split NAME")
@@ -49,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--max-frames must be at least 1, got {args.max_frames}")
     if args.davis is None:
         if args.onnx:
+            from runtime.segmentation import segmentation_tracker
             from runtime.video_loop import segment_folder as runtime_segment_folder
 
             n, seconds = runtime_segment_folder(segmentation_tracker(args.onnx), args.video, args.mask, args.out,
@@ -63,7 +63,12 @@ def run(args: argparse.Namespace) -> int:
                                     annotations=args.annotations, max_frames=args.max_frames)
         print(f"segmented {n} frames in {seconds:.1f} s ({n / seconds:.2f} FPS); masks in {args.out}")
         return 0
-    tracker = segmentation_tracker(args.onnx) if args.onnx else vos_tracker(args.ckpt)
+    if args.onnx:
+        from runtime.segmentation import segmentation_tracker
+
+        tracker = segmentation_tracker(args.onnx)
+    else:
+        tracker = vos_tracker(args.ckpt)
     job = {"model": str(Path(args.ckpt or args.onnx).resolve())}
     result, fps = segment_davis(tracker, args.davis, args.split, args.resolution, args.out, args.max_frames, job)
     print(json.dumps({"J&F": result["J&F-Mean"], "J": result["J-Mean"], "F": result["F-Mean"], "FPS": fps}))
