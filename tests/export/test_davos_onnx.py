@@ -6,9 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from core.errors import InputError
 from data.vos.composite_datamodule import lookalike_videos
-from export.davos_onnx import GRAPHS, export_graph
 from export.parity import mask_parity
 from runtime.bundle import Bundle
 from runtime.davos import OnnxDAVOSTracker
@@ -49,12 +47,3 @@ def test_masks_match_pytorch_on_lookalike_videos(davos_setup) -> None:
     videos = lookalike_videos(1, seed=5, n_frames=6, height=64, width=96, n_objects=3)
     ious = mask_parity(davos_setup["tracker"], OnnxDAVOSTracker(davos_setup["bundle"]), videos)
     assert len(ious) >= 12 and min(ious) >= 0.99
-
-
-def test_the_bundle_holds_every_graph_and_names_are_checked(davos_setup, tmp_path) -> None:
-    """The parallel export (the fixture's default: one worker per core) wrote each of GRAPHS; a name outside them
-    is an InputError that writes nothing."""
-    assert {f"{name}.onnx" for name in GRAPHS} == {p.name for p in davos_setup["bundle"].glob("*.onnx")}
-    with pytest.raises(InputError, match="unknown DAVOS graph 'decoder'"):
-        export_graph("decoder", davos_setup["tracker"], tmp_path, 64, 96)
-    assert list(tmp_path.iterdir()) == []

@@ -15,7 +15,7 @@ from data.vos.davis import load_davis_videos
 from data.vos.synthetic import synthetic_video
 from export.onnx import export_onnx
 from export.parity import mask_parity
-from export.vos_onnx import GRAPHS, FrameGraph, InsertGraph, apply_filter_per_object, export_bundle, export_graph
+from export.vos_onnx import FrameGraph, InsertGraph, apply_filter_per_object, export_bundle
 from models.vos.memory import Memory
 from models.vos.target_model import apply_filter
 from models.vos.tracker import FRTMTracker, frame_memory_insert
@@ -197,12 +197,3 @@ def test_insert_graph_keeps_the_first_frame(tmp_path) -> None:
     for a, b in zip(theirs, ours, strict=True):
         np.testing.assert_allclose(a, b.numpy(), rtol=1e-5, atol=1e-6)
     assert np.array_equal(theirs[0][0, 0], mem.features[0, 0].numpy()) and theirs[3][0, 0] >= 0.3 - 1e-6
-
-
-def test_the_bundle_holds_every_graph_and_names_are_checked(vos_setup, tmp_path) -> None:
-    """The parallel export (the fixture's default: one worker per core) wrote each of GRAPHS; a name outside them
-    is an InputError that writes nothing."""
-    assert {f"{name}.onnx" for name in GRAPHS} == {p.name for p in vos_setup["bundle"].glob("*.onnx")}
-    with pytest.raises(InputError, match="unknown VOS graph 'decoder'"):
-        export_graph("decoder", vos_setup["tracker"], tmp_path, 64, 96)
-    assert list(tmp_path.iterdir()) == []
