@@ -1,4 +1,5 @@
-"""The export pool: jobs run in this process or in worker processes, each reported once; errors reach the caller."""
+"""The export pool: jobs run in this process or in worker processes, each reported once; errors reach the caller;
+the VOS and DAVOS bundles it exports hold every graph of their task."""
 
 import os
 from pathlib import Path
@@ -6,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from core.errors import InputError
+from export import davos_onnx, vos_onnx
 from export.pool import GraphJob, export_jobs
 
 
@@ -44,3 +46,16 @@ def test_a_failed_job_raises_its_error(tmp_path, capsys, workers) -> None:
 def test_workers_must_be_a_positive_count(workers) -> None:
     with pytest.raises(InputError, match="--workers must be at least 1"):
         export_jobs("export.test", [GraphJob("g.onnx", write_pid, (Path("unused"),))], workers)
+
+
+@pytest.mark.parametrize(("exporter", "fixture", "task"), [(vos_onnx, "vos_setup", "VOS"),
+                                                          (davos_onnx, "davos_setup", "DAVOS")])
+def test_the_bundle_holds_every_graph_and_names_are_checked(exporter, fixture: str, task: str, request,
+                                                            tmp_path) -> None:
+    """The parallel export (the fixtures' default: one worker per core) wrote each of GRAPHS; a name outside them
+    is an InputError that writes nothing."""
+    setup = request.getfixturevalue(fixture)
+    assert {f"{name}.onnx" for name in exporter.GRAPHS} == {p.name for p in setup["bundle"].glob("*.onnx")}
+    with pytest.raises(InputError, match=f"unknown {task} graph 'decoder'"):
+        exporter.export_graph("decoder", setup["tracker"], tmp_path, 64, 96)
+    assert list(tmp_path.iterdir()) == []
