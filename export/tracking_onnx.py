@@ -177,14 +177,14 @@ def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, w
                     dynamic_shapes=({2: h, 3: w},))
 
 
-#: The bundle's graph exports, heaviest first (about 80, 80, 30, 30, 15 and 3 s at 96 x 128 on one core), so that
+#: The bundle's graph exports, heaviest first (about 60, 60, 18, 9, 9 and 4 s at 96 x 128 in one process), so that
 #: a pool of workers ends together: name -> (exporter, on the low-SNR twin).
 GRAPH_JOBS = {
     "step_low_snr.onnx": ("step", True),
     "step.onnx": ("step", False),
+    "profile.onnx, relative_blur.onnx, streak.onnx": ("blur", False),
     "init.onnx": ("init", False),
     "init_low_snr.onnx": ("init", True),
-    "profile.onnx, relative_blur.onnx, streak.onnx": ("blur", False),
     "snr.onnx": ("snr", False),
 }
 

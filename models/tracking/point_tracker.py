@@ -118,12 +118,19 @@ def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
     Each level is the previous one blurred by the binomial ``[1, 4, 6, 4, 1] / 16`` (reflected borders) and
     averaged over 2x2 blocks (as ``kornia.geometry.transform.pyrdown``), so level pixel ``i`` sits at
     ``2 i + 0.5`` of the level below. Both are one separable 6-tap filter at stride 2, applied as weighted sums
-    of strided slices (faster than a one-channel convolution on a CPU).
+    of strided slices (faster than a one-channel convolution on a CPU). In an exported graph it is one strided
+    convolution per axis: the slices' bounds, nested floor divisions of the dynamic frame size, made the
+    exporter's shape reasoning take more than half of the tracking graphs' export time.
     """
     taps = [t / 32 for t in _PYRDOWN_TAPS]
     pyramid = [frame]
     for _ in range(levels - 1):
         image = F.pad(pyramid[-1], (2, 3, 2, 3), mode="reflect")
+        if exporting():
+            kernel = torch.tensor(taps, dtype=image.dtype, device=image.device)
+            rows = F.conv2d(image, kernel.view(1, 1, -1, 1), stride=(2, 1))
+            pyramid.append(F.conv2d(rows, kernel.view(1, 1, 1, -1), stride=(1, 2)))
+            continue
         h, w = (image.shape[-2] - 4) // 2, (image.shape[-1] - 4) // 2
         rows = sum(tap * image[..., i : i + 2 * h - 1 : 2, :] for i, tap in enumerate(taps))
         pyramid.append(sum(tap * rows[..., i : i + 2 * w - 1 : 2] for i, tap in enumerate(taps)))

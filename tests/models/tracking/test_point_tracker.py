@@ -312,6 +312,20 @@ def test_pyramid_equals_kornia_pyrdown_away_from_the_border():
         torch.testing.assert_close(ours[..., 4:-4, 4:-4], ref[..., 4:-4, 4:-4], rtol=1e-9, atol=1e-9 * 2**level)
 
 
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_exported_pyramid_form_equals_the_eager_one(monkeypatch, dtype):
+    # the strided convolutions of an export against the strided slices of eager mode, on odd and even sizes
+    from models.tracking import point_tracker
+
+    img = (torch.rand(1, 1, 67, 90, generator=torch.Generator().manual_seed(0)) * 255).to(dtype)
+    eager = image_pyramid(img, 4)
+    monkeypatch.setattr(point_tracker, "exporting", lambda: True)
+    exported = image_pyramid(img, 4)
+    for ours, ref in zip(exported, eager, strict=True):
+        assert ours.shape == ref.shape and ours.dtype == dtype
+        torch.testing.assert_close(ours, ref, rtol=1e-6, atol=1e-4)
+
+
 def test_per_level_settings_are_checked():
     # the default band 0.5 keeps round(0.5 * 15) = 8 frequencies of the 31 px level 0
     assert PointTracker("ccot").sizes == (31, 21, 21, 21) and PointTracker("ccot").bands == (8, 5, 5, 5)
