@@ -7,7 +7,8 @@ levels weighted by a Gaussian prior around the coarser estimate) and add the sca
 regulariser grows with the frame's noise (estimated once per frame) against each patch's
 contrast (the noise counts the error of block coding, where a frame shows an 8 px codec grid), so frequencies that
 hold only noise in a blurred, dark or compressed patch do not move the peak. Points that leave
-the image, that have no peak (level-0 PSR below an absolute floor) or whose peak is weak, both against the frame's
+the image, that have no peak (level-0 PSR below a floor: an absolute one, lowered in a frame where every point's
+PSR is low, as in the dark) or whose peak is weak, both against the frame's
 other points and against the point's own PSR history, and that either do not track back to where they came from
 (a forward-backward test on level 0) or whose unweighted level-0 peak lies elsewhere than the prior's choice (an
 ambiguous match) are flagged lost and frozen at their last position, with the filters they had. The cues are
@@ -42,7 +43,8 @@ products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline inte
 refinement on the Fourier series runs where it sets the output (level 0), the coarser levels take the grid peak
 refined by a parabola. A sequence whose first frame is noisy (its points' median patch-to-noise variance ratio
 below ``low_snr``: dark, noisy or heavily compressed video) goes to a low-SNR twin of the tracker with Tukey
-windows (flat over the middle half: 0.94 times KLT's scatter per axis at 31 px) and 31 px patches at every level;
+windows (flat over the middle half: 0.94 times KLT's scatter per axis at 31 px), 31 px patches at every level
+and at least 0.7 of level 0's frequencies (the noise regulariser already mutes those that hold only noise);
 on clean frames the Hann window is the more precise (a real scene's patch deforms and is occluded first at its
 border). Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
 so that each transform is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is
@@ -109,6 +111,8 @@ _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): th
 _BLOCK_LEVELS = 2  # the finest levels, on which an 8 px codec block spans more than 2 px (PointTracker's block_limit)
 WINDOWS = ("hann", "tukey")
 _TUKEY_TAPER = 0.5  # fraction of each patch axis in the tapers of the Tukey window (window "tukey")
+_LOW_SNR_FINE_BAND = 0.7  # the least fraction of level 0's frequencies the low-SNR twin's filters keep
+_FLOOR_POINTS = 10  # tracked points a frame needs before its PSRs lower the floor (PointTracker's floor_relative)
 _LOW_SNR = 20.0  # default low_snr: median patch-to-noise variance ratio of a first frame tracked in low-SNR mode
 
 
@@ -261,7 +265,12 @@ class PointTracker(nn.Module):
         and either tracking it back to the previous frame misses by more than ``fb_threshold`` px
         (:meth:`_backward_error`) or its unweighted level-0 peak is more than ``fb_threshold`` px from the peak
         the displacement prior chose (None: the PSR test alone), or when its PSR is below ``psr_threshold``
-        (no peak at all; in a compressed frame only ``block_psr_threshold`` applies, below). psr_recover: a lost
+        (no peak at all; in a compressed frame only ``block_psr_threshold`` applies, below) and below
+        ``floor_relative`` times the geometric mean PSR of the frame's tracked points, where there are at least
+        10 (None: the absolute floor alone). In a dark or noisy frame every point's PSR is low (geometric means of
+        5-6 on the real pairs under the stress sets' darkness, 25-45 as they are), and a fixed floor there flags
+        correct tracks; a few points say little about the frame, and a point tracked alone would set its own
+        floor. psr_recover: a lost
         point comes back when its PSR passes the frame test above and is at least ``psr_recover`` times its
         running mean from before it was lost and it passes the forward-backward test, back to where it was frozen
         or to where the frame's mean step puts it in the previous frame (:meth:`_origin`; one with no history, lost in
@@ -314,7 +323,9 @@ class PointTracker(nn.Module):
         low_snr: the median signal-to-noise ratio (level-0 patch variance over the noise variance,
         :meth:`signal_to_noise`) of the first frame's points below which :meth:`init` hands the whole sequence to a
         low-SNR twin of this tracker: the same settings with Tukey windows and 31 px patches at every level, the
-        largest windows it can afford. The start points of the shared real pairs read 64-8458 (29-529 at a quarter
+        largest windows it can afford, and at least 0.7 of level 0's frequencies (``band``): in noise the
+        regulariser mutes the frequencies that hold only noise, and the others carry the fine texture that sets
+        the precision. The start points of the shared real pairs read 64-8458 (29-529 at a quarter
         of their contrast), of the first DAVIS frames 14-6480, under the stress sets' darkness or JPEG 15 1-9. The
         default, 20, sends the latter and the two noisiest DAVIS videos (soccerball, mallard-fly) to the twin.
         None: never.
@@ -331,6 +342,7 @@ class PointTracker(nn.Module):
         newton_iterations: int | tuple[int, ...] = (2, 0, 0, 0),
         search_sigma: float | tuple[float, ...] | None = None,
         psr_threshold: float = 2.5,
+        floor_relative: float | None = 0.4,
         psr_relative: float = 0.3,
         psr_rate: float | None = 0.3,
         psr_recover: float | None = 0.7,
@@ -373,6 +385,9 @@ class PointTracker(nn.Module):
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
         self.psr_relative, self.fb_threshold = psr_relative, fb_threshold
+        if floor_relative is not None and not floor_relative > 0:
+            raise InputError(f"floor_relative must be a positive factor or None, got {floor_relative}")
+        self.floor_relative = floor_relative
         if psr_rate is not None and not 0 < psr_rate <= 1:
             raise InputError(f"psr_rate must lie in (0, 1] or be None, got {psr_rate}")
         self.psr_rate = psr_rate
@@ -431,9 +446,11 @@ class PointTracker(nn.Module):
                 shift = band_frequencies(n, n // 2, False).float()  # signed shifts 0, 1, .., -1 of an N-map
                 prior = torch.exp(-(shift[:, None].square() + shift.square()) / (2 * self.search_sigmas[level] ** 2))
                 self.register_buffer(f"search_prior_{level}", prior[:, None, :], persistent=False)
-        # the low-SNR twin: the same settings with Tukey windows and the level-0 patch size at every level
+        # the low-SNR twin: the same settings with Tukey windows, the level-0 patch size at every level and a wider
+        # level-0 band
+        twin_band = (max(fractions[0], _LOW_SNR_FINE_BAND), *fractions[1:])
         self.low_snr_tracker = None if low_snr is None else PointTracker(
-            **{**settings, "patch_size": self.sizes[0], "window": "tukey", "low_snr": None})
+            **{**settings, "patch_size": self.sizes[0], "window": "tukey", "band": twin_band, "low_snr": None})
 
     def _sample(self, image: Tensor, centres: Tensor, level: int,
                 patches: Tensor | None = None) -> tuple[Tensor, Tensor, Tensor]:
@@ -666,6 +683,10 @@ class PointTracker(nn.Module):
             misses = (misses & ~back) | self._fails_backward(misses & back, previous, origin, *sample, noise)
             weak, back = weak & (ambiguous | misses), back & ~(ambiguous | misses)
         floor = fine_weight * self.psr_threshold + (1 - fine_weight) * self.block_psr_threshold
+        if self.floor_relative is not None:  # lowered where the whole frame's PSRs are low
+            counted = (~lost & torch.isfinite(psr)).sum() >= _FLOOR_POINTS
+            relative = torch.where(counted, self.floor_relative * self._frame_psr(psr, lost), math.inf)
+            floor = torch.minimum(relative, floor) if isinstance(floor, Tensor) else relative.clamp_max(floor)
         lost = (lost | weak | ~(psr >= floor)) & ~back
         psr_mean = self._psr_mean(psr_mean, psr, lost)
         positions = torch.where(lost.unsqueeze(-1), positions, moved)
@@ -747,14 +768,19 @@ class PointTracker(nn.Module):
 
     def _lost_threshold(self, psr: Tensor, lost: Tensor) -> Tensor:
         """The PSR below which a point's peak is weak in this frame: ``psr_relative`` times the geometric mean PSR
-        of the points still tracked. Relative to the frame, the test follows what lowers every point's PSR
-        alike (darkness, blur, compression) and singles out the points whose peak collapses against the rest
-        (occlusion, a wrong match). It needs other points to compare with: a point tracked alone is lost only by
-        the absolute floor ``psr_threshold`` or by leaving the image."""
+        of the points still tracked (:meth:`_frame_psr`). Relative to the frame, the test follows what lowers every
+        point's PSR alike (darkness, blur, compression) and singles out the points whose peak collapses against
+        the rest (occlusion, a wrong match). It needs other points to compare with: a point tracked alone is lost
+        only by the floor ``psr_threshold`` or by leaving the image."""
+        return self.psr_relative * self._frame_psr(psr, lost)
+
+    @staticmethod
+    def _frame_psr(psr: Tensor, lost: Tensor) -> Tensor:
+        """Geometric mean of the finite PSRs ``(P,)`` of the points not ``lost`` (1 where there are none), a
+        0-dim tensor."""
         tracked = (~lost & torch.isfinite(psr)).to(psr.dtype)
         log_psr = torch.log(torch.where(tracked > 0, psr, torch.ones_like(psr)).clamp_min(1e-3)) * tracked
-        mean = torch.exp(log_psr.sum() / tracked.sum().clamp_min(1))
-        return self.psr_relative * mean
+        return torch.exp(log_psr.sum() / tracked.sum().clamp_min(1))
 
     def _psr_mean(self, psr_mean: Tensor, psr: Tensor, lost: Tensor) -> Tensor:
         """Each point's running geometric-mean PSR ``(P,)`` after a frame with PSR ``psr`` ``(P,)``: ``mean^(1 - r)

@@ -622,14 +622,49 @@ def test_a_blocked_frame_keeps_the_points_whose_peak_its_blocks_weaken(quality):
     assert (errors[kept] < 1.5).all(), errors[kept]
 
 
+@pytest.mark.parametrize("floor_relative", [0.4, None])
+@pytest.mark.parametrize("scale", [1.0, 0.2])
+@pytest.mark.parametrize("count", [12, 6])
+def test_the_psr_floor_is_lowered_in_a_frame_of_low_psrs(monkeypatch, floor_relative, scale, count):
+    """With the level-0 PSRs of ``count`` points set (``scale`` times a fixed spread) and the tests against the
+    frame and the backward search switched off, a point is lost exactly where its PSR is below ``psr_threshold``
+    and, in a frame of at least 10 tracked points, below ``floor_relative`` times their geometric mean PSR (a point
+    outside the frame is lost and not counted): in the frame of high PSRs the absolute floor, in the other the
+    relative one, which keeps points the absolute floor flags; with 6 points, or without ``floor_relative``, the
+    absolute floor."""
+    import models.tracking.point_tracker as module
+
+    gen = torch.Generator().manual_seed(2)
+    img = _smooth_image(96, 96, 6)
+    grid = torch.tensor([20.0, 35.0, 50.0, 65.0], dtype=torch.float64)
+    inside = torch.stack(torch.meshgrid(grid, grid[:3], indexing="xy"), -1).reshape(-1, 2)[:count]
+    points = torch.cat([inside, torch.tensor([[200.0, 40.0]], dtype=torch.float64)])  # the last one outside
+    spread_psr = torch.tensor([40.0, 25.0, 12.0, 10.0, 9.0, 2.0, 30.0, 20.0, 15.0, 8.0, 6.0, 3.0], dtype=torch.float64)
+    psr = torch.cat([scale * spread_psr[:count], torch.tensor([0.5], dtype=torch.float64)])
+    tracker = PointTracker("ccot", floor_relative=floor_relative, low_snr=None).double()
+    monkeypatch.setattr(module, "interleaved_psr", lambda *args: psr.clone())
+    monkeypatch.setattr(tracker, "_lost_threshold", lambda psr, lost: torch.zeros_like(psr))
+    monkeypatch.setattr(tracker, "_fails_backward", lambda weak, *args: torch.zeros_like(weak))
+    moved = _translate(img, 1.0, 0.5) + torch.randn(96, 96, generator=gen, dtype=torch.float64)
+    state = tracker.init(img, points)
+    lost = tracker(moved[None, None], img[None, None], state.positions, state.lost, state.psr_mean, *state.filters)[1]
+    values = psr[:-1].tolist()
+    mean = math.exp(sum(math.log(v) for v in values) / len(values))
+    relative = floor_relative is not None and count >= 10
+    floor = min(2.5, floor_relative * mean) if relative else 2.5
+    assert lost.tolist() == [v < floor for v in values] + [True], (floor, lost.tolist())
+    below_absolute = sum(v < 2.5 for v in values)
+    assert below_absolute >= 1 and (sum(v < floor for v in values) < below_absolute) == (relative and scale < 1)
+
+
 @pytest.mark.parametrize("quality", [3, 20])
 def test_in_a_blocked_frame_only_the_floor_flags_points(monkeypatch, quality):
     """With every point made weak against the frame and a forward-backward test made to fail always, every point
     is lost in a frame that is not blocked (quality 20); in a blocked frame (quality 3) the lost points are exactly
     those whose PSR is below ``block_psr_threshold``, whatever the tests on level 0 say (``compression_reg`` 0, as
-    above)."""
+    above; the floor not lowered to the frame's PSRs, ``floor_relative`` None)."""
     frames, points = _compressed_pair(quality, 8.0)
-    tracker = PointTracker("ccot", block_psr_threshold=3.0, compression_reg=0).double()
+    tracker = PointTracker("ccot", block_psr_threshold=3.0, compression_reg=0, floor_relative=None).double()
     monkeypatch.setattr(tracker, "_lost_threshold", lambda psr, lost: torch.full_like(psr, math.inf))
     monkeypatch.setattr(tracker, "_fails_backward", lambda weak, *args: weak)
     _, lost, psr = (v[1] for v in tracker.track(frames, points))
@@ -703,17 +738,21 @@ def _noisy_sequence(noise: float) -> tuple[list[torch.Tensor], torch.Tensor, tor
     return frames, points, points + torch.tensor([7.5, -4.5], dtype=torch.float64)
 
 
+_TWIN_BAND = (0.7, 0.5, 0.5, 0.5)  # the default twin's band fractions, finest level first
+
+
 def test_a_noisy_sequence_goes_to_the_low_snr_twin():
     """Noise of std 20 on the texture (median SNR about 4, below ``low_snr``): the sequence is tracked by the twin
-    (the state says so frame after frame; the tracks equal a Tukey, 31 px tracker's), more precisely than the Hann
-    tracker alone; without noise, or with ``low_snr`` None, the tracker keeps its own filters."""
+    (the state says so frame after frame; the tracks equal those of a Tukey, 31 px tracker keeping 0.7 of level
+    0's frequencies), more precisely than the Hann tracker alone; without noise, or with ``low_snr`` None, the
+    tracker keeps its own filters."""
     frames, points, truth = _noisy_sequence(20.0)
     tracker = PointTracker().double()
     state = tracker.init(frames[0], points)
     assert state.low_snr and tracker.step(frames[1], state).low_snr
     assert not tracker.init(frames[0], points, switch=False).low_snr
     tracks = tracker.track(frames, points)[0]
-    twin = PointTracker(window="tukey", patch_size=31, low_snr=None).double().track(frames, points)[0]
+    twin = PointTracker(window="tukey", patch_size=31, band=_TWIN_BAND, low_snr=None).double().track(frames, points)[0]
     torch.testing.assert_close(tracks, twin, rtol=0, atol=0)
     hann = PointTracker(low_snr=None).double().track(frames, points)[0]
     errors = [(t[-1] - truth).norm(dim=-1).median() for t in (tracks, hann)]
@@ -738,7 +777,8 @@ def test_init_extracts_the_level_0_patches_once(monkeypatch, noise):
     state = tracker.init(frames[0], points)
     assert state.low_snr == (noise > 0)
     assert len(calls) == tracker.levels, calls
-    alone = PointTracker(window="tukey", patch_size=31, low_snr=None) if noise else PointTracker(low_snr=None)
+    alone = (PointTracker(window="tukey", patch_size=31, band=_TWIN_BAND, low_snr=None) if noise
+             else PointTracker(low_snr=None))
     for got, want in zip(state.filters, alone.double().init(frames[0], points).filters, strict=True):
         torch.testing.assert_close(got, want, rtol=0, atol=0)
 
@@ -751,24 +791,31 @@ def test_window_and_low_snr_settings_are_checked():
             PointTracker("ccot", low_snr=value)
     with pytest.raises(InputError, match="compression_reg"):
         PointTracker("ccot", compression_reg=-1.0)
+    for value in (0.0, -0.4, float("nan")):
+        with pytest.raises(InputError, match="floor_relative"):
+            PointTracker("ccot", floor_relative=value)
 
 
 def test_the_low_snr_twin_keeps_every_other_setting():
-    """The twin of a tracker with every setting off its default differs only in window, patch sizes and low_snr:
-    each stored setting, each level's label (sigma) and band fraction are the parent's."""
+    """The twin of a tracker with every setting off its default differs only in window, patch sizes, level 0's
+    band (at least 0.7 of its frequencies) and low_snr: each stored setting, each level's label (sigma) and the
+    coarser levels' band fractions are the parent's; a parent's wider level-0 band stays."""
     settings = dict(method="mosse", levels=3, sigma=1.5, eta=0.05, reg_rel=0.02, newton_iterations=(1, 1, 0),
-                    search_sigma=(2.0, 0.0, 0.0), psr_threshold=3.0, psr_relative=0.4, psr_rate=0.5, psr_recover=0.8,
+                    search_sigma=(2.0, 0.0, 0.0), psr_threshold=3.0, floor_relative=0.5, psr_relative=0.4,
+                    psr_rate=0.5, psr_recover=0.8,
                     fb_threshold=2.0, psr_exclude=5, band=0.6, noise_reg=10.0, blur_match=None, streak_score=-5.0,
                     streak_match=3.0, block_limit=4.0, block_psr_threshold=1.0, compression_reg=1.0)
     tracker = PointTracker(**settings, patch_size=(31, 21, 21), low_snr=50.0)
     twin = tracker.low_snr_tracker
     assert (twin.window, twin.sizes, twin.low_snr, twin.low_snr_tracker) == ("tukey", (31, 31, 31), None, None)
-    names = ("method", "levels", "eta", "reg_rel", "newton", "search_sigmas", "psr_threshold", "psr_relative",
+    names = ("method", "levels", "eta", "reg_rel", "newton", "search_sigmas", "psr_threshold", "floor_relative",
+             "psr_relative",
              "psr_rate", "psr_recover", "fb_threshold", "psr_exclude", "noise_reg", "blur_match", "streak_score",
              "streak_match", "block_limit", "block_psr_threshold", "compression_reg")
     assert {n: getattr(twin, n) for n in names} == {n: getattr(tracker, n) for n in names}
-    assert twin.bands == (9, 9, 9)  # 0.6 of 15 at every level
-    torch.testing.assert_close(twin.label_0, tracker.label_0, rtol=0, atol=0)
+    assert twin.bands == (10, 9, 9)  # 0.7 of 15 (10.5, rounded to even) at level 0, 0.6 of 15 at the others
+    assert PointTracker(band=(0.9, 0.5, 0.5, 0.5)).low_snr_tracker.bands == (14, 8, 8, 8)  # 13.5 and 7.5, to even
+    torch.testing.assert_close(twin.label_1, tracker.label_0, rtol=0, atol=0)  # both 31 px, band 9, sigma 1.5
 
 
 def weakening_streak_frames() -> list[np.ndarray]:
