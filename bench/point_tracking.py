@@ -4,10 +4,11 @@ OpenCV's pyramidal Lucas-Kanade (KLT) from the same good-features-to-track start
 Datasets: folders laid out like ``../shared/data/sintel/alley_1/clean`` (frames plus ``gt/``: Sintel, and the
 Middlebury pairs in ``../shared/data/middlebury/<Seq>``; from the first ground-truth flow on, chained over
 consecutive flows, ground truth by the thesis protocol; named ``<parent>_<folder>``; ``--sintel-conditions`` adds
-the same folders under the photometric stress conditions below, dark, low contrast, illumination change or JPEG,
-named ``<parent>_<folder>_<condition>``), a seeded synthetic sequence with chained ground truth (``--synthetic``)
-and the synthetic stress conditions of :mod:`data.flow.stress` (``--stress [CONDITION ...]``, named
-``stress_<condition>``: dark, low contrast, motion blur, fast motion, illumination change, JPEG, a long run) and
+the same folders under the photometric stress conditions below, dark, low contrast, illumination change, JPEG or
+dark frames stored as JPEG at quality 90, named ``<parent>_<folder>_<condition>``), a seeded synthetic sequence
+with chained ground truth (``--synthetic``) and the synthetic stress conditions of :mod:`data.flow.stress`
+(``--stress [CONDITION ...]``, named ``stress_<condition>``: dark, low contrast, motion blur, fast motion,
+illumination change, JPEG, a long run, occluders, dark frames stored as JPEG at quality 90) and
 real photographs seen through chains of small homographies under growing defocus or motion blur, JPEG compression or
 darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file
 stem>``, 6 frames; the conditions ``stress_dark`` etc. put every frame under a photometric stress condition

@@ -243,6 +243,7 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                       "low_snr_patch_sizes": list(tracker.low_snr_tracker.sizes),
                       "low_snr_bands": list(tracker.low_snr_tracker.bands),
                       "low_snr_window": tracker.low_snr_tracker.window,
+                      "low_snr_first_step_sigmas": list(tracker.low_snr_tracker.first_step_sigmas),
                       "good_features": {"quality": 0.01, "min_distance": 5}})
     return Path(out)
 

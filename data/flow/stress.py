@@ -12,12 +12,15 @@ to about 8 px per frame) and changes one thing:
   shading of +-35 % that rotates over the sequence);
 - ``jpeg``: every frame JPEG-compressed at quality 15 (blocking and ringing);
 - ``long``: 60 frames, for drift and sample-memory effects over a long run;
+- ``dark_jpeg``: the dark condition's frames stored as JPEG at quality 90, as a camera or a high-bitrate encoder
+  stores them: the codec removes most of the noise's highest frequencies and keeps the rest, so an estimate of the
+  noise from the finest pixel differences reads a fraction of it;
 - ``occlusion``: six opaque textured discs (radius 20-45 px) that cross the scene on straight paths at 4-12 px
   per frame; the points they cover lose their ground truth (:attr:`SyntheticSequence.occluder`), so this is
   where a tracker should flag points lost.
 
 Every condition is seeded: the same (condition, seed, size) gives the same frames. The photometric ones (dark, low
-contrast, illumination, JPEG) also apply to any frames, e.g. a real sequence's (:func:`stress_frames`).
+contrast, illumination, JPEG, dark JPEG) also apply to any frames, e.g. a real sequence's (:func:`stress_frames`).
 """
 
 from __future__ import annotations
@@ -29,8 +32,9 @@ from core.errors import InputError
 from data.flow.synthetic import SyntheticSequence, synthetic_sequence
 
 STRESS_CONDITIONS = (
-    "dark", "low_contrast", "motion_blur", "fast_motion", "illumination", "jpeg", "long", "occlusion"
+    "dark", "low_contrast", "motion_blur", "fast_motion", "illumination", "jpeg", "long", "occlusion", "dark_jpeg"
 )
+_DARK_JPEG_QUALITY = 90  # the JPEG quality of the dark_jpeg condition's frames
 
 # synthetic_sequence arguments per condition, on top of a moderate base motion (8 px per frame), so that each
 # condition isolates one difficulty
@@ -44,6 +48,7 @@ _RENDER = {
     "jpeg": {},
     "long": {"frames": 60},
     "occlusion": {},
+    "dark_jpeg": {"noise": 0.0},
 }
 
 
@@ -66,10 +71,10 @@ def _illumination(frames: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return frames * gain[:, None, None] * shading
 
 
-def _jpeg(frames: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def _jpeg(frames: np.ndarray, rng: np.random.Generator, quality: int = 15) -> np.ndarray:
     out = np.empty_like(frames)
     for i, frame in enumerate(frames.round().clip(0, 255).astype(np.uint8)):
-        ok, data = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 15])
+        ok, data = cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, quality])
         out[i] = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE)
     return out
 
@@ -96,13 +101,19 @@ def _occluders(seq: SyntheticSequence, rng: np.random.Generator, count: int = 6)
     seq.occluder = covered
 
 
-_POST = {"dark": _dark, "low_contrast": _low_contrast, "illumination": _illumination, "jpeg": _jpeg}
+def _dark_jpeg(frames: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    return _jpeg(_dark(frames, rng), rng, _DARK_JPEG_QUALITY)
+
+
+_POST = {
+    "dark": _dark, "low_contrast": _low_contrast, "illumination": _illumination, "jpeg": _jpeg, "dark_jpeg": _dark_jpeg
+}
 PHOTOMETRIC_CONDITIONS = tuple(_POST)  # the conditions that change the frames alone, not the motion
 
 
 def stress_frames(frames: np.ndarray, condition: str, seed: int = 0) -> np.ndarray:
     """Frames ``(T, H, W)`` (gray levels in [0, 255], e.g. a real sequence's) under one of the photometric stress
-    conditions (:data:`PHOTOMETRIC_CONDITIONS`: dark, low_contrast, illumination, jpeg) exactly as the stress
+    conditions (:data:`PHOTOMETRIC_CONDITIONS`: dark, low_contrast, illumination, jpeg, dark_jpeg) exactly as the stress
     sequences get it; float32 in [0, 255], seeded (the same frames, condition and seed give the same result)."""
     if condition not in PHOTOMETRIC_CONDITIONS:
         raise InputError(

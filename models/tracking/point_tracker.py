@@ -92,7 +92,13 @@ from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
 from models.export_mode import exporting, outer_product, spread
 from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
-from models.tracking.compression import BLOCK, block_grid, block_grid_ratio, compression_error_variance
+from models.tracking.compression import (
+    BLOCK,
+    GRID_RAMP,
+    block_grid,
+    block_grid_ratio,
+    compression_error_variance,
+)
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
 
@@ -112,6 +118,10 @@ _BLOCK_LEVELS = 2  # the finest levels, on which an 8 px codec block spans more 
 WINDOWS = ("hann", "tukey")
 _TUKEY_TAPER = 0.5  # fraction of each patch axis in the tapers of the Tukey window (window "tukey")
 _LOW_SNR_FINE_BAND = 0.7  # the least fraction of level 0's frequencies the low-SNR twin's filters keep
+_LOW_SNR_FIRST_SIGMA = 2.0  # px: the low-SNR twin's displacement prior of the fine levels in a point's first step
+# block-grid ratio up to which a frame counts as free of a codec grid (first_step_sigma): the end of the compression
+# error's fade-in, from where the codec's error counts in full
+_GRID_FREE = GRID_RAMP[1]
 _FLOOR_POINTS = 10  # tracked points a frame needs before its PSRs lower the floor (PointTracker's floor_relative)
 _LOW_SNR = 20.0  # default low_snr: median patch-to-noise variance ratio of a first frame tracked in low-SNR mode
 
@@ -197,6 +207,16 @@ def _level_centres(positions: Tensor, level: int) -> Tensor:
     return (positions + 0.5) / 2**level - 0.5
 
 
+def displacement_prior(n: int, sigma: float) -> Tensor:
+    """Gaussian weight ``exp(-|d|^2 / (2 sigma^2))`` of the displacements ``d`` (bins) of an ``n x n`` score map
+    (odd ``n``, as the patches) in FFT order (shift 0 first, negative shifts wrapped to the end), ``(n, 1, n)``
+    float32 to broadcast over the points of ``(n, P, n)`` maps; all ones for ``sigma`` 0 (free search)."""
+    shift = band_frequencies(n, n // 2, False).float()  # signed shifts 0, 1, .., -1 of an n-map
+    if sigma == 0:
+        return torch.ones(n, 1, n)
+    return torch.exp(-(shift[:, None].square() + shift.square()) / (2 * sigma**2))[:, None, :]
+
+
 def _peak_gap(a: tuple[Tensor, Tensor, Tensor], b: tuple[Tensor, Tensor, Tensor], n: int) -> Tensor:
     """Chebyshev distance ``(P,)`` in bins between two :func:`interleaved_argmax` results on ``(n, P, n)`` maps
     (shifts taken circularly)."""
@@ -258,6 +278,14 @@ class PointTracker(nn.Module):
         compression blocks or a neighbouring structure than a correction; the weighting keeps such peaks from
         pulling the point away. Sub-pixel refinement and the PSR use the unweighted map. None: 3 px at the two finest
         levels, free search at the others (the large motion is found there).
+        first_step_sigma: the prior's std per level (as ``search_sigma``; 0: free search) for the points in their
+        first step (no PSR history yet) in a frame free of a codec grid (block-grid ratio up to 1.5, where
+        :func:`~models.tracking.compression.compression_error_variance` counts in full); None: ``search_sigma``
+        throughout. Filters trained on one noisy frame carry all of its noise, and in a dark frame the fine levels'
+        peaks then stray to noise 4-5 px from the coarser estimate more often than KLT's local search does; from
+        the second step the sample memory averages the noise, and a tight prior there would only add the coarser
+        levels' error to every step (it lowered the precision of dark round trips). In JPEG 15 frames the fine
+        levels need the usual search. The low-SNR twin uses 2 px at the levels where ``search_sigma`` weights.
         psr_relative, psr_rate, fb_threshold, psr_threshold: a point is lost when its level-0 PSR falls below
         ``psr_relative`` times the geometric mean PSR of the frame's tracked points (:meth:`_lost_threshold`)
         and below ``psr_relative`` times its own running geometric-mean PSR (the newest PSR weighted
@@ -341,6 +369,7 @@ class PointTracker(nn.Module):
         reg_rel: float = 1e-2,
         newton_iterations: int | tuple[int, ...] = (2, 0, 0, 0),
         search_sigma: float | tuple[float, ...] | None = None,
+        first_step_sigma: float | tuple[float, ...] | None = None,
         psr_threshold: float = 2.5,
         floor_relative: float | None = 0.4,
         psr_relative: float = 0.3,
@@ -381,6 +410,12 @@ class PointTracker(nn.Module):
         self.search_sigmas = _per_level(search_sigma, levels, "search_sigma", float)
         if not all(s >= 0 for s in self.search_sigmas):
             raise InputError(f"search_sigma must be non-negative (0: free search), got {self.search_sigmas}")
+        self.first_step_sigmas = None
+        if first_step_sigma is not None:
+            self.first_step_sigmas = _per_level(first_step_sigma, levels, "first_step_sigma", float)
+            if not all(s >= 0 for s in self.first_step_sigmas):
+                raise InputError(f"first_step_sigma must be non-negative (0: free search) or None, "
+                                 f"got {self.first_step_sigmas}")
         self.method, self.levels = method, levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
@@ -442,15 +477,44 @@ class PointTracker(nn.Module):
             omega = band_frequencies(n, m, False) * (2 * math.pi / n)  # angular frequencies of the rows, per px
             self.register_buffer(f"omega_y_{level}", omega[:, None].float(), persistent=False)  # (2M + 1, 1)
             self.register_buffer(f"omega_x_{level}", omega[: m + 1].float(), persistent=False)  # (M + 1,)
-            if self.search_sigmas[level] > 0:  # the displacement prior over the score map, FFT order (N, 1, N)
-                shift = band_frequencies(n, n // 2, False).float()  # signed shifts 0, 1, .., -1 of an N-map
-                prior = torch.exp(-(shift[:, None].square() + shift.square()) / (2 * self.search_sigmas[level] ** 2))
-                self.register_buffer(f"search_prior_{level}", prior[:, None, :], persistent=False)
-        # the low-SNR twin: the same settings with Tukey windows, the level-0 patch size at every level and a wider
-        # level-0 band
+            # the displacement priors over the score map, FFT order (N, 1, N); 1 where the search is free
+            if self._weighted(level):
+                self.register_buffer(f"search_prior_{level}", displacement_prior(n, self.search_sigmas[level]),
+                                     persistent=False)
+            if self._weighted(level) and self.first_step_sigmas is not None:
+                self.register_buffer(f"first_step_prior_{level}", displacement_prior(n, self.first_step_sigmas[level]),
+                                     persistent=False)
+        # the low-SNR twin: the same settings with Tukey windows, the level-0 patch size at every level, a wider
+        # level-0 band and a tighter prior in a point's first step
         twin_band = (max(fractions[0], _LOW_SNR_FINE_BAND), *fractions[1:])
+        twin_first = tuple(_LOW_SNR_FIRST_SIGMA if s > 0 else 0.0 for s in self.search_sigmas)
         self.low_snr_tracker = None if low_snr is None else PointTracker(
-            **{**settings, "patch_size": self.sizes[0], "window": "tukey", "band": twin_band, "low_snr": None})
+            **{**settings, "patch_size": self.sizes[0], "window": "tukey", "band": twin_band, "low_snr": None,
+               "first_step_sigma": twin_first})
+
+    def _weighted(self, level: int) -> bool:
+        """Whether a displacement prior weights ``level``'s score map (``search_sigma`` or ``first_step_sigma``)."""
+        first = self.first_step_sigmas is not None and self.first_step_sigmas[level] > 0
+        return self.search_sigmas[level] > 0 or first
+
+    def _search_weight(self, level: int, first: Tensor | None) -> Tensor:
+        """The displacement prior over ``level``'s score maps: ``(N, 1, N)``, or ``(N, P, N)`` with the first-step
+        prior for the points ``first`` ``(P,)`` (:meth:`_first_step`; None: none of them)."""
+        prior = getattr(self, f"search_prior_{level}")
+        if first is None:
+            return prior
+        return torch.where(first[:, None], getattr(self, f"first_step_prior_{level}"), prior)
+
+    def _first_step(self, ratio: Tensor | None, psr_mean: Tensor) -> Tensor | None:
+        """The points ``(P,)`` that take the first-step prior (``first_step_sigma``): no PSR history yet
+        (``psr_mean`` inf) in a frame whose block-grid ratio ``ratio`` is at most 1.5; None where the tracker has no
+        such prior, the frame's grid was not measured (under two blocks a side), or, in an eager step, no point takes
+        it (every step after the first: the plain prior, without a map per point)."""
+        if self.first_step_sigmas is None or ratio is None:
+            return None
+        first = torch.isinf(psr_mean) & (ratio <= _GRID_FREE)
+        traced = exporting() or torch.compiler.is_compiling()
+        return first if traced or bool(first.any()) else None
 
     def _sample(self, image: Tensor, centres: Tensor, level: int,
                 patches: Tensor | None = None) -> tuple[Tensor, Tensor, Tensor]:
@@ -634,18 +698,19 @@ class PointTracker(nn.Module):
         start = torch.where(torch.isfinite(positions), positions, torch.zeros_like(positions))  # lost: where frozen
         d = torch.zeros_like(positions)
         fine_weight = self._fine_weight(ratio)
+        first = self._first_step(ratio, psr_mean)
         spectra, centres = [], []
         for level in reversed(range(self.levels)):
             centre = _level_centres(start + d, level)
             zr, zi, std = self._sample(pyramid[level], centre, level)
             spectrum = self._response(filters[level], zr, zi, self._noise_power(noise, std, level), level)
             score = self.dfts[level].inverse(spectrum)  # (N, P, N)
-            weighted = self.search_sigmas[level] > 0
+            weighted = self._weighted(level)
             if level == 0 or not weighted:
                 argmax = interleaved_argmax(score)
                 psr_argmax = argmax  # the PSR judges the unweighted level-0 map
             if weighted:  # the peak of the prior-weighted map, refined on the map itself
-                argmax = interleaved_argmax(score, getattr(self, f"search_prior_{level}"))
+                argmax = interleaved_argmax(score, self._search_weight(level, first))
             step = 2**level * self._peak(spectrum, score, argmax, level)
             if level < min(_BLOCK_LEVELS, self.levels - 1):
                 step = step * fine_weight

@@ -1,6 +1,9 @@
 """Stress conditions for point tracking: seeded, each one a real change of the plain sequence, ground truth that
 holds (blur centred on it, hidden points removed), bad names refused."""
 
+import math
+
+import cv2
 import numpy as np
 import pytest
 
@@ -82,6 +85,28 @@ def test_stress_frames_degrade_real_frames_as_the_stress_sequences():
     assert abs(dark.mean() - 15.0) < 0.1 and abs(dark.var() - (0.6 * 15 + 1.5**2)) < 0.3
     np.testing.assert_array_equal(dark, stress_frames(flat, "dark", seed=1))  # seeded
     assert not np.array_equal(dark, stress_frames(flat, "dark", seed=2))
+
+
+def test_dark_jpeg_is_the_dark_condition_thinned_by_the_codec():
+    """On a flat gray frame ``dark_jpeg`` keeps the dark condition's mean ``0.15 s`` and most of its noise (std
+    ``sqrt(0.6 (0.15 s) + 1.5^2)``), but a noise estimate from the finest pixel differences (the median absolute
+    response to the 3 x 3 Laplacian difference, ``6 * 0.6745 sigma`` for white noise of std ``sigma``) reads under
+    half of it: the codec removed the noise's highest frequencies. Its frames are JPEG's: coded again at quality
+    90 they hardly change."""
+    flat = np.full((2, 200, 200), 100.0)
+    frames = stress_frames(flat, "dark_jpeg", seed=1)
+    noise = math.sqrt(0.6 * 15 + 1.5**2)
+    assert abs(frames.mean() - 15.0) < 0.3 and 0.7 * noise < frames.std() < 0.95 * noise, frames.std()
+    kernel = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
+
+    def finest(frame: np.ndarray) -> float:
+        return float(np.median(np.abs(cv2.filter2D(frame.astype(np.float64), -1, kernel)[1:-1, 1:-1]))) / (6 * 0.6745)
+
+    dark = finest(stress_frames(flat, "dark", seed=1)[0])
+    assert finest(frames[0]) < 0.5 * dark and abs(dark - noise) < 0.05 * noise, (finest(frames[0]), dark)
+    frame = frames[0].astype(np.uint8)
+    again = cv2.imdecode(cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, 90])[1], cv2.IMREAD_GRAYSCALE)
+    assert np.abs(again.astype(int) - frame).mean() < 0.5
 
 
 def test_stress_frames_refuse_motion_conditions_and_bad_shapes():

@@ -14,8 +14,9 @@ from data.flow import homography_sequence
 from models.dcf import cosine_window, cubic_spline_fourier
 from models.dcf.dft import band_index
 from models.tracking import PointTracker, extract_patches, good_features_to_track
+from models.tracking.compression import block_grid_ratio
 from models.tracking.motion_blur import motion_blur_streak
-from models.tracking.point_tracker import image_pyramid
+from models.tracking.point_tracker import displacement_prior, image_pyramid
 from tests.models.tracking.test_blur import textured
 
 
@@ -739,6 +740,8 @@ def _noisy_sequence(noise: float) -> tuple[list[torch.Tensor], torch.Tensor, tor
 
 
 _TWIN_BAND = (0.7, 0.5, 0.5, 0.5)  # the default twin's band fractions, finest level first
+_TWIN_FIRST = (2.0, 2.0, 0.0, 0.0)  # the default twin's first-step prior (px per level, finest first)
+_TWIN = dict(window="tukey", patch_size=31, band=_TWIN_BAND, low_snr=None, first_step_sigma=_TWIN_FIRST)
 
 
 def test_a_noisy_sequence_goes_to_the_low_snr_twin():
@@ -752,7 +755,7 @@ def test_a_noisy_sequence_goes_to_the_low_snr_twin():
     assert state.low_snr and tracker.step(frames[1], state).low_snr
     assert not tracker.init(frames[0], points, switch=False).low_snr
     tracks = tracker.track(frames, points)[0]
-    twin = PointTracker(window="tukey", patch_size=31, band=_TWIN_BAND, low_snr=None).double().track(frames, points)[0]
+    twin = PointTracker(**_TWIN).double().track(frames, points)[0]
     torch.testing.assert_close(tracks, twin, rtol=0, atol=0)
     hann = PointTracker(low_snr=None).double().track(frames, points)[0]
     errors = [(t[-1] - truth).norm(dim=-1).median() for t in (tracks, hann)]
@@ -777,7 +780,7 @@ def test_init_extracts_the_level_0_patches_once(monkeypatch, noise):
     state = tracker.init(frames[0], points)
     assert state.low_snr == (noise > 0)
     assert len(calls) == tracker.levels, calls
-    alone = (PointTracker(window="tukey", patch_size=31, band=_TWIN_BAND, low_snr=None) if noise
+    alone = (PointTracker(**_TWIN) if noise
              else PointTracker(low_snr=None))
     for got, want in zip(state.filters, alone.double().init(frames[0], points).filters, strict=True):
         torch.testing.assert_close(got, want, rtol=0, atol=0)
@@ -798,7 +801,8 @@ def test_window_and_low_snr_settings_are_checked():
 
 def test_the_low_snr_twin_keeps_every_other_setting():
     """The twin of a tracker with every setting off its default differs only in window, patch sizes, level 0's
-    band (at least 0.7 of its frequencies) and low_snr: each stored setting, each level's label (sigma) and the
+    band (at least 0.7 of its frequencies), the first-step prior (2 px where ``search_sigma`` weights) and
+    low_snr: each stored setting, each level's label (sigma) and the
     coarser levels' band fractions are the parent's; a parent's wider level-0 band stays."""
     settings = dict(method="mosse", levels=3, sigma=1.5, eta=0.05, reg_rel=0.02, newton_iterations=(1, 1, 0),
                     search_sigma=(2.0, 0.0, 0.0), psr_threshold=3.0, floor_relative=0.5, psr_relative=0.4,
@@ -808,6 +812,7 @@ def test_the_low_snr_twin_keeps_every_other_setting():
     tracker = PointTracker(**settings, patch_size=(31, 21, 21), low_snr=50.0)
     twin = tracker.low_snr_tracker
     assert (twin.window, twin.sizes, twin.low_snr, twin.low_snr_tracker) == ("tukey", (31, 31, 31), None, None)
+    assert (tracker.first_step_sigmas, twin.first_step_sigmas) == (None, (2.0, 0.0, 0.0))
     names = ("method", "levels", "eta", "reg_rel", "newton", "search_sigmas", "psr_threshold", "floor_relative",
              "psr_relative",
              "psr_rate", "psr_recover", "fb_threshold", "psr_exclude", "noise_reg", "blur_match", "streak_score",
@@ -816,6 +821,85 @@ def test_the_low_snr_twin_keeps_every_other_setting():
     assert twin.bands == (10, 9, 9)  # 0.7 of 15 (10.5, rounded to even) at level 0, 0.6 of 15 at the others
     assert PointTracker(band=(0.9, 0.5, 0.5, 0.5)).low_snr_tracker.bands == (14, 8, 8, 8)  # 13.5 and 7.5, to even
     torch.testing.assert_close(twin.label_1, tracker.label_0, rtol=0, atol=0)  # both 31 px, band 9, sigma 1.5
+
+
+def test_displacement_prior_is_a_gaussian_of_the_wrapped_shift():
+    """Every bin of the prior map against a loop over the bins: shift ``i`` for ``i <= n // 2``, ``i - n`` above
+    (FFT order), weight ``exp(-(dy^2 + dx^2) / (2 sigma^2))``; sigma 0 weights nothing."""
+    for n, sigma in ((7, 2.0), (31, 3.0), (21, 1.5)):
+        want = torch.empty(n, 1, n)
+        for i in range(n):
+            for j in range(n):
+                dy, dx = (i if i <= n // 2 else i - n), (j if j <= n // 2 else j - n)
+                want[i, 0, j] = math.exp(-(dy * dy + dx * dx) / (2 * sigma * sigma))
+        torch.testing.assert_close(displacement_prior(n, sigma), want, rtol=1e-5, atol=1e-12)
+    assert torch.equal(displacement_prior(9, 0.0), torch.ones(9, 1, 9))
+
+
+def test_the_first_step_prior_weights_new_points_in_frames_without_a_codec_grid():
+    """``first_step_sigma``: the points without PSR history (inf) in a frame of block-grid ratio up to 1.5 take the
+    first-step prior, every other point the ``search_sigma`` one; a tracker without it, a frame whose grid was not
+    measured, or (eager) a frame where no point takes it, weights all alike. The low-SNR twin gets 2 px on the
+    levels where ``search_sigma`` weights."""
+    tracker = PointTracker(first_step_sigma=(2.0, 1.0, 0.0, 0.0))
+    psr_mean = torch.tensor([math.inf, 4.0, math.inf])
+    assert tracker._first_step(torch.tensor([1.02]), psr_mean).tolist() == [True, False, True]
+    assert tracker._first_step(torch.tensor([1.5]), psr_mean).tolist() == [True, False, True]
+    assert tracker._first_step(torch.tensor([1.9]), psr_mean) is None  # eager, and no point takes it
+    assert tracker._first_step(torch.tensor([1.0]), torch.tensor([4.0, 2.0])) is None
+    assert tracker._first_step(None, psr_mean) is None
+    assert PointTracker()._first_step(torch.tensor([1.0]), psr_mean) is None
+    for level, sigmas in ((0, (2.0, 3.0)), (1, (1.0, 3.0))):
+        weight = tracker._search_weight(level, torch.tensor([True, False, False]))
+        assert weight.shape == (31 if level == 0 else 21, 3, 31 if level == 0 else 21)
+        for point, sigma in zip((0, 1, 2), (sigmas[0], sigmas[1], sigmas[1]), strict=True):
+            torch.testing.assert_close(weight[:, point : point + 1], displacement_prior(weight.shape[0], sigma))
+    assert PointTracker(search_sigma=(3.0, 0.0, 0.0, 0.0)).low_snr_tracker.first_step_sigmas == (2.0, 0.0, 0.0, 0.0)
+    assert PointTracker().first_step_sigmas is None
+    for value in (-1.0, (2.0, 2.0)):
+        with pytest.raises(InputError, match="first_step_sigma"):
+            PointTracker(first_step_sigma=value)
+
+
+def _dark_texture(frames: int, quality: int | None = None) -> tuple[list[torch.Tensor], torch.Tensor, torch.Tensor]:
+    """``frames`` frames of fine texture (Gaussian-blurred noise, std 2 px) whose contrast fades from 6 gray levels
+    on the right to 0.06 on the left, on a dark background (30) with white noise of std 3, moving by (2.5, -1.5) px
+    per frame (cubic interpolation); JPEG-coded at ``quality`` where given. A grid of points and their true
+    positions after one step."""
+    rng = np.random.default_rng(0)
+    texture = cv2.GaussianBlur(rng.normal(0, 1, (224, 224)), (0, 0), 2.0)
+    texture = 6 * np.linspace(0.1, 1.0, 224)[None, :] ** 2 * texture / texture.std()
+    out = []
+    for t in range(frames):
+        shift = np.float32([[1, 0, 2.5 * t], [0, 1, -1.5 * t]])
+        frame = 30 + cv2.warpAffine(texture, shift, (224, 224), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
+        frame = (frame + rng.normal(0, 3, frame.shape)).round().clip(0, 255).astype(np.uint8)
+        if quality is not None:
+            frame = cv2.imdecode(cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, quality])[1], 0)
+        out.append(torch.from_numpy(frame.astype(np.float64)))
+    grid = torch.arange(32.0, 193.0, 8.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    return out, points, points + torch.tensor([2.5, -1.5], dtype=torch.float64)
+
+
+def test_the_first_step_prior_holds_dark_points_to_the_coarse_estimate_in_their_first_step_only():
+    """Low-contrast texture in noise (median SNR about 1.4), the twin's settings: with the 2 px first-step prior
+    fewer points miss by more than 3 px in the first step than with the 3 px one; from the second step on both
+    step alike (the same positions and lost flags from the same state), and in frames JPEG-coded at quality 70 (a
+    block grid, ratio about 2.3) the tracks are the same, though the prior would change them there."""
+    first = PointTracker(**_TWIN).double()
+    plain = PointTracker(**{**_TWIN, "first_step_sigma": None}).double()
+    frames, points, truth = _dark_texture(3)
+    misses = [int(((t.track(frames[:2], points)[0][-1] - truth).norm(dim=-1) > 3).sum()) for t in (first, plain)]
+    assert misses[0] <= 0.8 * misses[1] and misses[1] >= 10, misses
+    state = first.step(frames[1], first.init(frames[0], points))
+    after = [t.step(frames[2], state) for t in (first, plain)]
+    torch.testing.assert_close(after[0].positions, after[1].positions, rtol=0, atol=0)
+    assert torch.equal(after[0].lost, after[1].lost)
+    compressed, points, _ = _dark_texture(2, quality=70)
+    assert float(block_grid_ratio(compressed[0][None, None])) > 1.5
+    for got, want in zip(first.track(compressed, points), plain.track(compressed, points), strict=True):
+        torch.testing.assert_close(got, want, rtol=0, atol=0)
 
 
 def weakening_streak_frames() -> list[np.ndarray]:
