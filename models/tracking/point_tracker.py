@@ -210,11 +210,9 @@ def _level_centres(positions: Tensor, level: int) -> Tensor:
 def displacement_prior(n: int, sigma: float) -> Tensor:
     """Gaussian weight ``exp(-|d|^2 / (2 sigma^2))`` of the displacements ``d`` (bins) of an ``n x n`` score map
     (odd ``n``, as the patches) in FFT order (shift 0 first, negative shifts wrapped to the end), ``(n, 1, n)``
-    float32 to broadcast over the points of ``(n, P, n)`` maps; all ones for ``sigma`` 0 (free search)."""
-    shift = band_frequencies(n, n // 2, False).float()  # signed shifts 0, 1, .., -1 of an n-map
-    if sigma == 0:
-        return torch.ones(n, 1, n)
-    return torch.exp(-(shift[:, None].square() + shift.square()) / (2 * sigma**2))[:, None, :]
+    float32 to broadcast over the points of ``(n, P, n)`` maps (MOSSE's :func:`~models.dcf.gaussian_label`); all
+    ones for ``sigma`` 0 (free search)."""
+    return torch.ones(n, 1, n) if sigma == 0 else gaussian_label((n, n), sigma)[:, None, :]
 
 
 def _peak_gap(a: tuple[Tensor, Tensor, Tensor], b: tuple[Tensor, Tensor, Tensor], n: int) -> Tensor:
@@ -481,9 +479,9 @@ class PointTracker(nn.Module):
             if self._weighted(level):
                 self.register_buffer(f"search_prior_{level}", displacement_prior(n, self.search_sigmas[level]),
                                      persistent=False)
-            if self._weighted(level) and self.first_step_sigmas is not None:
-                self.register_buffer(f"first_step_prior_{level}", displacement_prior(n, self.first_step_sigmas[level]),
-                                     persistent=False)
+                if self.first_step_sigmas is not None:
+                    prior = displacement_prior(n, self.first_step_sigmas[level])
+                    self.register_buffer(f"first_step_prior_{level}", prior, persistent=False)
         # the low-SNR twin: the same settings with Tukey windows, the level-0 patch size at every level, a wider
         # level-0 band and a tighter prior in a point's first step
         twin_band = (max(fractions[0], _LOW_SNR_FINE_BAND), *fractions[1:])
