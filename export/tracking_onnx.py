@@ -27,7 +27,14 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   inside the frame, inf where none is (:meth:`PointTracker.signal_to_noise`); below ``thresholds.low_snr`` the
   runtime tracks the sequence with ``init_low_snr.onnx`` and ``step_low_snr.onnx``, the graphs of the tracker's
   low-SNR twin (Tukey windows, the level-0 patch size at every level; inputs and outputs as ``init`` and
-  ``step``).
+  ``step``, and ``step_low_snr`` takes a ``noise_floor`` (1,) after ``psr_mean``: the least noise variance of the
+  frame, 0 for none).
+- ``first_step_noise.onnx``: ``frame``, ``template`` (the level-0 filters of the first frame), ``positions`` and
+  ``lost`` after the first step -> ``noise`` (3,): the residual SNR and noise variance of that step
+  (:meth:`PointTracker.first_step_noise`) and the frame's noise variance. Where the first step's geometric-mean
+  PSR is below ``thresholds.low_snr_psr``, its residual SNR below ``thresholds.low_snr_residual`` and its residual
+  noise above the frame's, the runtime tracks the sequence again from the first frame on the low-SNR graphs, that
+  step with that noise as ``noise_floor`` (:meth:`PointTracker._low_snr_retry`).
 
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
 difference and the lost flags that differ.
@@ -60,11 +67,39 @@ from runtime.tracking import OnnxPointTracker
 MIN_SIZE, MAX_SIZE, MAX_POINTS = 64, 4096, 100_000
 
 
-def io_names(levels: int) -> tuple[list[str], list[str]]:
-    """Input and output names of the exported step for a ``levels``-level tracker."""
+def io_names(levels: int, floor: bool = False) -> tuple[list[str], list[str]]:
+    """Input and output names of the exported step for a ``levels``-level tracker (``floor``: with the
+    ``noise_floor`` input of :class:`FlooredStep`)."""
     filters = [f"filters_{level}" for level in range(levels)]
-    inputs = ["frame", "previous", "positions", "lost", "psr_mean", *filters]
+    inputs = ["frame", "previous", "positions", "lost", "psr_mean", *(["noise_floor"] if floor else []), *filters]
     return inputs, ["positions_out", "lost_out", "psr", "psr_mean_out", *[f"{name}_out" for name in filters]]
+
+
+class FlooredStep(nn.Module):
+    """:meth:`PointTracker.forward` with its ``noise_floor`` (1,) as an input after ``psr_mean`` (0: none): the
+    low-SNR twin's step, which a retried first step hands the noise it measured (:meth:`PointTracker.step`)."""
+
+    def __init__(self, tracker: PointTracker) -> None:
+        super().__init__()
+        self.tracker = tracker
+
+    def forward(self, frame: Tensor, previous: Tensor, positions: Tensor, lost: Tensor, psr_mean: Tensor,
+                noise_floor: Tensor, *filters: Tensor) -> tuple[Tensor, ...]:
+        return self.tracker(frame, previous, positions, lost, psr_mean, *filters, noise_floor=noise_floor)
+
+
+class FirstStepNoiseGraph(nn.Module):
+    """:meth:`PointTracker.first_step_noise` and the frame's noise estimate: frame (1, 1, H, W), the level-0
+    filters of the first frame (3, N, P, K), positions (P, 2) and lost (P,) after the first step -> (3,): residual
+    SNR, residual noise variance and the frame's noise variance (gray levels^2)."""
+
+    def __init__(self, tracker: PointTracker) -> None:
+        super().__init__()
+        self.tracker = tracker
+
+    def forward(self, frame: Tensor, template: Tensor, positions: Tensor, lost: Tensor) -> Tensor:
+        snr, noise = self.tracker.first_step_noise(frame, template, positions, lost)
+        return torch.cat([snr, noise, self.tracker._noise_variance(frame)])
 
 
 class InitGraph(nn.Module):
@@ -125,16 +160,21 @@ def example_inputs(tracker: PointTracker, height: int, width: int, points: int, 
 
 
 def export_tracking_step(path: str | Path, tracker: PointTracker, height: int = 240, width: int = 320,
-                         points: int = 64) -> Path:
-    """Export :meth:`PointTracker.forward` of ``tracker`` with dynamic H, W and P; returns the path."""
+                         points: int = 64, floor: bool = False) -> Path:
+    """Export :meth:`PointTracker.forward` of ``tracker`` with dynamic H, W and P (``floor``: as
+    :class:`FlooredStep`, with a ``noise_floor`` input); returns the path."""
     args = example_inputs(tracker, height, width, points)
     p = torch.export.Dim("points", min=2, max=MAX_POINTS)
     h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
-    inputs, outputs = io_names(tracker.levels)
+    inputs, outputs = io_names(tracker.levels, floor)
     dynamic = {"frame": {2: h, 3: w}, "previous": {2: h, 3: w}, "positions": {0: p}, "lost": {0: p}, "psr_mean": {0: p}}
+    if floor:
+        args = (*args[:5], torch.full((1,), 4.0), *args[5:])
+        dynamic["noise_floor"] = None
     dynamic["filters"] = tuple({2: p} for _ in range(tracker.levels))  # forward's *filters
+    module = FlooredStep(tracker) if floor else tracker
     with torch.no_grad():
-        return export_onnx(tracker, args, path, inputs, outputs, dynamic_shapes=dynamic)
+        return export_onnx(module, args, path, inputs, outputs, dynamic_shapes=dynamic)
 
 
 def export_tracking_init(path: str | Path, tracker: PointTracker, height: int = 240, width: int = 320,
@@ -158,6 +198,18 @@ def export_snr_graph(path: str | Path, tracker: PointTracker, height: int = 240,
     with torch.no_grad():
         return export_onnx(SnrGraph(tracker), (frame, positions), path, ["frame", "points"], ["snr"],
                            dynamic_shapes=({2: h, 3: w}, {0: p}))
+
+
+def export_first_step_noise_graph(path: str | Path, tracker: PointTracker, height: int = 240, width: int = 320,
+                                  points: int = 64) -> Path:
+    """Export :class:`FirstStepNoiseGraph` of ``tracker`` with dynamic H, W and P."""
+    frame, _, positions, lost, _, template, *_ = example_inputs(tracker, height, width, points)
+    p = torch.export.Dim("points", min=2, max=MAX_POINTS)
+    h, w = torch.export.Dim("height", min=MIN_SIZE, max=MAX_SIZE), torch.export.Dim("width", min=MIN_SIZE, max=MAX_SIZE)
+    with torch.no_grad():
+        return export_onnx(FirstStepNoiseGraph(tracker), (frame, template, positions + 0.5, lost), path,
+                           ["frame", "template", "positions", "lost"], ["noise"],
+                           dynamic_shapes=({2: h, 3: w}, {2: p}, {0: p}, {0: p}))
 
 
 def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, width: int = 320) -> None:
@@ -186,6 +238,7 @@ GRAPH_JOBS = {
     "init.onnx": ("init", False),
     "init_low_snr.onnx": ("init", True),
     "snr.onnx": ("snr", False),
+    "first_step_noise.onnx": ("noise", False),
 }
 
 
@@ -196,11 +249,13 @@ def export_graph(name: str, folder: Path, method: str, height: int, width: int) 
     tracker = PointTracker(method).eval()
     tracker = tracker.low_snr_tracker if twin else tracker
     if kind == "step":
-        export_tracking_step(folder / name, tracker, height, width)
+        export_tracking_step(folder / name, tracker, height, width, floor=twin)
     elif kind == "init":
         export_tracking_init(folder / name, tracker, height, width)
     elif kind == "blur":
         export_blur_graphs(folder, tracker, height, width)
+    elif kind == "noise":
+        export_first_step_noise_graph(folder / name, tracker, height, width)
     else:
         export_snr_graph(folder / name, tracker, height, width)
 
@@ -217,7 +272,8 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                   workers: int | None = None) -> Path:
     """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``profile.onnx``,
     ``relative_blur.onnx``, ``streak.onnx``, ``snr.onnx``, ``init_low_snr.onnx``, ``step_low_snr.onnx``,
-    ``bundle.json``), its graphs exported by ``workers`` processes (:func:`export_graphs`)."""
+    ``first_step_noise.onnx``, ``bundle.json``), its graphs exported by ``workers`` processes
+    (:func:`export_graphs`)."""
     if method not in METHODS:
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
     if not (MIN_SIZE <= height <= MAX_SIZE and MIN_SIZE <= width <= MAX_SIZE):
@@ -237,7 +293,8 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                         "noise_reg": tracker.noise_reg, "blur_match_px2": tracker.blur_match,
                         "streak_score": tracker.streak_score, "streak_match_px2": tracker.streak_match,
                         "block_limit": tracker.block_limit, "block_psr_threshold": tracker.block_psr_threshold,
-                        "compression_reg": tracker.compression_reg, "low_snr": tracker.low_snr},
+                        "compression_reg": tracker.compression_reg, "low_snr": tracker.low_snr,
+                        "low_snr_psr": tracker.low_snr_psr, "low_snr_residual": tracker.low_snr_residual},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
                       "search_sigmas": list(tracker.search_sigmas), "window": tracker.window,
                       "low_snr_patch_sizes": list(tracker.low_snr_tracker.sizes),

@@ -13,7 +13,10 @@ the bundle's ``blur_match_px2`` the sharper view is blurred (``cv2.GaussianBlur`
 changes by more than its ``streak_match_px2`` (``blur_match_px2`` where the streak reads the same in the frame's
 four quarters), each view is blurred by the other's streak instead. Where the ``snr`` graph reads the first frame's
 points (those inside it) with a median signal-to-noise ratio below the bundle's ``low_snr``, the whole sequence
-runs on the ``init_low_snr`` and ``step_low_snr`` graphs (``PointTracker.init``'s low-SNR twin). The tracks
+runs on the ``init_low_snr`` and ``step_low_snr`` graphs (``PointTracker.init``'s low-SNR twin); where the first
+step's PSRs are low and the ``first_step_noise`` graph reads its residuals as noise that the frame's estimate
+under-read, that step runs again on them from the first frame, with the noise it read as the frame's least noise
+(``PointTracker._low_snr_retry``). The tracks
 file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
 ``points``, ``method`` and ``frames``.
 """
@@ -23,7 +26,8 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -47,6 +51,24 @@ from core.streak import (
 from runtime.bundle import Bundle, add_runtime_arguments
 
 
+@dataclass
+class _Tracks:
+    """The host loop's state after a frame: the step graph's outputs (positions, lost flags, PSRs, running PSR
+    means, filters), the radial power profiles of the frame the filters were last trained afresh on
+    (``reference``) and of the last frame (``last``; None: not measured yet), the last frame's streak and the
+    filters' streaks (``template``)."""
+
+    positions: np.ndarray
+    flags: np.ndarray
+    scores: np.ndarray
+    means: np.ndarray
+    filters: list
+    reference: np.ndarray | None = None
+    last: np.ndarray | None = None
+    streak: Streak | None = None
+    template: tuple[Streak, ...] = ()
+
+
 class OnnxPointTracker:
     """The point tracker of a tracking bundle.
 
@@ -64,6 +86,10 @@ class OnnxPointTracker:
         self.low_snr = thresholds.get("low_snr")
         self.snr_graph = self.bundle.graph("snr") if self.low_snr is not None else None
         self._graph_pairs = {False: (self.init_graph, self.step_graph)}  # the low-SNR pair is loaded when needed
+        self.low_snr_psr, self.low_snr_residual = thresholds.get("low_snr_psr"), thresholds.get("low_snr_residual")
+        retry = self.low_snr is not None and self.low_snr_psr is not None
+        self.noise_graph = self.bundle.graph("first_step_noise") if retry else None
+        self.on_low_snr_graphs = False
         self.blur_match = thresholds.get("blur_match_px2")
         self.streak_score = thresholds.get("streak_score") if self.blur_match is not None else None
         self.streak_match = thresholds.get("streak_match_px2")
@@ -90,41 +116,78 @@ class OnnxPointTracker:
             raise InputError(f"points must be a non-empty (P, 2) array, got shape {points.shape}")
         single = len(points) == 1  # the graphs take at least 2 points; a copy leaves a lone point's result alone
         points = np.concatenate([points, points]) if single else points
-        tracks, lost, psr, previous = [], [], [], None
+        tracks, lost, psr, previous, state = [], [], [], None, None
         for t, frame in enumerate(progress_line(frames, f"track {self.method} (onnxruntime)", enabled=progress)):
             image = self._frame(frame, t)
             if previous is None:
-                self.init_graph, self.step_graph = self._graphs(self._low_snr(image, points))
-                positions, flags, scores, means, *filters = self.init_graph(image, points)
-                reference = last = self.profile_graph(image) if self.blur_match is not None else None
-                streak = self._streak(image)
-                template = (streak,) if streak else ()
+                self._use_graphs(self._low_snr(image, points))
+                state = start = self._start(image, points)
             else:
                 if image.shape != previous.shape:
                     raise InputError(f"frame {t} has size {image.shape[2:]}, frame 0 has {previous.shape[2:]}")
-                if self.blur_match is None:
-                    positions, flags, scores, means, *filters = self.step_graph(image, previous, positions, flags,
-                                                                                means, *filters)
-                elif (new_streak := self._streak(image, streak)) is not None or template:
-                    (positions, flags, scores, means, *filters), template = self._streak_step(
-                        image, previous, positions, flags, means, filters, streak, new_streak, template)
-                    reference = last = None  # the Gaussian matching restarts from this frame
-                else:
-                    last = self.profile_graph(previous) if last is None else last
-                    profile = self.profile_graph(image)
-                    (positions, flags, scores, means, *filters), reference = self._matched_step(
-                        image, previous, positions, flags, means, filters, last if reference is None else reference,
-                        last, profile)
-                    last = profile
-                streak = new_streak if self.blur_match is not None else None
+                new = self._step(image, previous, state)
+                floor = self._retry_floor(image, start, new) if t == 1 else None
+                if floor is not None:  # the first step again, on the low-SNR graphs (PointTracker._low_snr_retry)
+                    self._use_graphs(True, floor)
+                    new = self._step(image, previous, self._start(previous, points))
+                    self._use_graphs(True)  # the floor holds for that step only
+                state = new
             previous = image
-            tracks.append(positions)
-            lost.append(flags)
-            psr.append(scores)
+            tracks.append(state.positions)
+            lost.append(state.flags)
+            psr.append(state.scores)
         if previous is None:
             raise InputError("no frames to track")
         keep = slice(0, 1) if single else slice(None)
         return tuple(np.stack(a)[:, keep] for a in (tracks, lost, psr))  # type: ignore[return-value]
+
+    def _use_graphs(self, low_snr: bool, noise_floor: np.ndarray | None = None) -> None:
+        """Track on the tracker's pair of graphs or (``low_snr``) on the low-SNR twin's, whose step takes
+        ``noise_floor`` (1,) (gray levels^2; None: 0, none)."""
+        self.init_graph, step = self._graphs(low_snr)
+        floor = np.zeros(1, np.float32) if noise_floor is None else noise_floor
+        self.step_graph = _with_floor(step, floor) if low_snr else step
+        self.on_low_snr_graphs = low_snr
+
+    def _start(self, image: np.ndarray, points: np.ndarray) -> _Tracks:
+        """The state after the first frame ``image`` (1, 1, H, W): the init graph's outputs at ``points``, the
+        frame's radial power profile (with blur matching) and its streak."""
+        positions, flags, scores, means, *filters = self.init_graph(image, points)
+        reference = self.profile_graph(image) if self.blur_match is not None else None
+        streak = self._streak(image)
+        return _Tracks(positions, flags, scores, means, filters, reference, reference, streak,
+                       (streak,) if streak else ())
+
+    def _step(self, image: np.ndarray, previous: np.ndarray, state: _Tracks) -> _Tracks:
+        """One frame ``image`` after ``previous`` (each (1, 1, H, W)) from ``state``: the step graph, with blur or
+        streak matching where the bundle has them (``PointTracker.step``)."""
+        args = (image, previous, state.positions, state.flags, state.means, state.filters)
+        if self.blur_match is None:
+            positions, flags, scores, means, *filters = self.step_graph(*args[:5], *state.filters)
+            return _Tracks(positions, flags, scores, means, filters)
+        if (streak := self._streak(image, state.streak)) is not None or state.template:
+            outputs, template = self._streak_step(*args, state.streak, streak, state.template)
+            reference = last = None  # the Gaussian matching restarts from this frame
+        else:
+            last = self.profile_graph(previous) if state.last is None else state.last
+            profile = self.profile_graph(image)
+            outputs, reference = self._matched_step(*args, last if state.reference is None else state.reference,
+                                                    last, profile)
+            last, template = profile, state.template
+        positions, flags, scores, means, *filters = outputs
+        return _Tracks(positions, flags, scores, means, filters, reference, last, streak, template)
+
+    def _retry_floor(self, image: np.ndarray, start: _Tracks, new: _Tracks) -> np.ndarray | None:
+        """The noise floor (1,) with which the first step into ``image`` is tracked again on the low-SNR graphs
+        (``start``: the state after the first frame, ``new``: after this step), or None: where the step's
+        geometric-mean PSR is below the bundle's ``low_snr_psr``, the ``first_step_noise`` graph's residual SNR
+        below ``low_snr_residual`` and its residual noise above the frame's (``PointTracker._low_snr_retry``)."""
+        if self.noise_graph is None or self.on_low_snr_graphs:
+            return None
+        if not _frame_psr(new.scores, new.flags) < self.low_snr_psr:
+            return None
+        snr, noise, estimate = self.noise_graph(image, start.filters[0], new.positions, new.flags)
+        return noise[None] if snr < self.low_snr_residual and noise > estimate else None
 
     def _low_snr(self, image: np.ndarray, points: np.ndarray) -> bool:
         """Whether the median signal-to-noise ratio of the ``points`` (P >= 2) inside the (1, 1, H, W) first frame
@@ -205,6 +268,20 @@ class OnnxPointTracker:
         flags, filters = self._retrained(matched, positions, flags, filters)
         outputs = self.step_graph(_streaked(image, streak), matched, positions, flags, means, *filters)
         return outputs, tuple(s for s in (streak, new_streak) if s is not None)
+
+
+def _with_floor(step: Callable, noise_floor: np.ndarray) -> Callable:
+    """The low-SNR step graph ``step`` called as the tracker's step graph: ``noise_floor`` (1,) goes in after the
+    running PSR means."""
+    return lambda image, previous, positions, flags, means, *filters: step(image, previous, positions, flags, means,
+                                                                           noise_floor, *filters)
+
+
+def _frame_psr(psr: np.ndarray, lost: np.ndarray) -> float:
+    """Geometric mean of the finite PSRs (P,) of the points not ``lost`` (1 where there are none), as
+    ``PointTracker._frame_psr``."""
+    tracked = ~lost & np.isfinite(psr)
+    return float(np.exp(np.log(np.maximum(psr[tracked], 1e-3)).mean())) if tracked.any() else 1.0
 
 
 def _streaked(image: np.ndarray, streak: Streak | None) -> np.ndarray:

@@ -46,7 +46,10 @@ below ``low_snr``: dark, noisy or heavily compressed video) goes to a low-SNR tw
 windows (flat over the middle half: 0.94 times KLT's scatter per axis at 31 px), 31 px patches at every level
 and at least 0.7 of level 0's frequencies (the noise regulariser already mutes those that hold only noise);
 on clean frames the Hann window is the more precise (a real scene's patch deforms and is occluded first at its
-border). Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
+border). A sequence whose first step has weak peaks and residuals that show noise the first frame's estimate
+under-read (dark video stored at a high JPEG quality, where the codec thinned the noise's finest differences) goes
+to the twin after that step, which is tracked again (:meth:`PointTracker._low_snr_retry`).
+Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
 so that each transform is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is
 applied to the spectrum (the mean as a multiple of the window's spectrum), so the pixel-sized arrays are only read,
 by two reductions and the transform.
@@ -124,6 +127,8 @@ _LOW_SNR_FIRST_SIGMA = 2.0  # px: the low-SNR twin's displacement prior of the f
 _GRID_FREE = GRID_RAMP[1]
 _FLOOR_POINTS = 10  # tracked points a frame needs before its PSRs lower the floor (PointTracker's floor_relative)
 _LOW_SNR = 20.0  # default low_snr: median patch-to-noise variance ratio of a first frame tracked in low-SNR mode
+_LOW_SNR_PSR = 16.0  # default low_snr_psr: geometric-mean PSR of a first step below which the noise is measured again
+_RESIDUAL_SNR_MARGIN = 4.0  # a first step's residual SNR sends a sequence to the twin below low_snr over this
 
 
 def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
@@ -215,6 +220,13 @@ def displacement_prior(n: int, sigma: float) -> Tensor:
     return torch.ones(n, 1, n) if sigma == 0 else gaussian_label((n, n), sigma)[:, None, :]
 
 
+def _lower_median(values: Tensor, counted: Tensor) -> Tensor:
+    """The lower median ``(1,)`` (as ``torch.median``) of ``values`` ``(P,)`` where ``counted`` ``(P,)``; inf where
+    none counts. A sort with the others last and a gather at a computed index: a fixed shape, which exports."""
+    ordered = torch.where(counted, values, torch.full_like(values, math.inf)).sort().values
+    return ordered.gather(0, ((counted.sum() - 1) // 2).clamp_min(0).reshape(1))
+
+
 def _peak_gap(a: tuple[Tensor, Tensor, Tensor], b: tuple[Tensor, Tensor, Tensor], n: int) -> Tensor:
     """Chebyshev distance ``(P,)`` in bins between two :func:`interleaved_argmax` results on ``(n, P, n)`` maps
     (shifts taken circularly)."""
@@ -241,7 +253,9 @@ class TrackerState:
     ``profile`` that of ``frame`` (None: not measured yet). With streak matching, ``streak`` is the straight motion
     blur ``(length px, angle rad)`` found in ``frame`` (None: none) and ``template`` the streaks that blur the views
     the filters were last trained afresh on (:meth:`PointTracker._streak_matched_step`). ``low_snr``: the
-    sequence is tracked by the low-SNR twin (:meth:`PointTracker.init`)."""
+    sequence is tracked by the low-SNR twin (:meth:`PointTracker.init`). ``noise_floor``: ``(1,)`` the least noise
+    variance (gray levels^2) of the next frame, for one step (:meth:`PointTracker._low_snr_retry`; None: the frame's
+    estimate alone)."""
 
     frame: Tensor
     positions: Tensor
@@ -254,6 +268,7 @@ class TrackerState:
     streak: Streak | None = None
     template: tuple[Streak, ...] = ()
     low_snr: bool = False
+    noise_floor: Tensor | None = None
 
 
 class PointTracker(nn.Module):
@@ -355,6 +370,11 @@ class PointTracker(nn.Module):
         of their contrast), of the first DAVIS frames 14-6480, under the stress sets' darkness or JPEG 15 1-9. The
         default, 20, sends the latter and the two noisiest DAVIS videos (soccerball, mallard-fly) to the twin.
         None: never.
+        low_snr_psr: the geometric-mean PSR of a sequence's first step below which :meth:`step` measures that step's
+        residual noise and, where it shows an SNR below ``low_snr / 4`` that the frame's noise estimate missed,
+        tracks the step again with the twin (:meth:`_low_snr_retry`). The first steps of the shared real pairs
+        read 20-43 (as they are and under the stress sets' low contrast or illumination), those of dark frames
+        stored as JPEG 5-13. None: never (and where ``low_snr`` is None).
     """
 
     def __init__(
@@ -385,6 +405,7 @@ class PointTracker(nn.Module):
         window: str = "hann",
         compression_reg: float = 3.0,
         low_snr: float | None = _LOW_SNR,
+        low_snr_psr: float | None = _LOW_SNR_PSR,
     ) -> None:
         settings = {name: value for name, value in locals().items() if name not in ("self", "__class__")}
         super().__init__()
@@ -396,7 +417,12 @@ class PointTracker(nn.Module):
             raise InputError(f"compression_reg must be a non-negative weight, got {compression_reg}")
         if low_snr is not None and not low_snr > 0:
             raise InputError(f"low_snr must be a positive signal-to-noise ratio or None, got {low_snr}")
+        if low_snr_psr is not None and not low_snr_psr > 0:
+            raise InputError(f"low_snr_psr must be a positive PSR or None, got {low_snr_psr}")
         self.window, self.compression_reg, self.low_snr = window, compression_reg, low_snr
+        self.low_snr_psr = low_snr_psr
+        # the residual SNR below which a retried first step hands the sequence to the twin (_low_snr_retry)
+        self.low_snr_residual = None if low_snr is None else low_snr / _RESIDUAL_SNR_MARGIN
         if patch_size is None:
             patch_size = (_FINE_PATCH,) + (_COARSE_PATCH,) * (levels - 1)
         self.sizes = _per_level(patch_size, levels, "patch_size")
@@ -488,7 +514,7 @@ class PointTracker(nn.Module):
         twin_first = tuple(_LOW_SNR_FIRST_SIGMA if s > 0 else 0.0 for s in self.search_sigmas)
         self.low_snr_tracker = None if low_snr is None else PointTracker(
             **{**settings, "patch_size": self.sizes[0], "window": "tukey", "band": twin_band, "low_snr": None,
-               "first_step_sigma": twin_first})
+               "low_snr_psr": None, "first_step_sigma": twin_first})
 
     def _weighted(self, level: int) -> bool:
         """Whether a displacement prior weights ``level``'s score map (``search_sigma`` or ``first_step_sigma``)."""
@@ -576,11 +602,7 @@ class PointTracker(nn.Module):
         centres = torch.where(inside.unsqueeze(-1), points, torch.zeros_like(points))
         # level-0 centres as _train computes them ((x + 0.5) - 0.5 may round): the same patches to the bit
         patches = extract_patches(frame, _level_centres(centres, 0), self.sizes[0])
-        ratio = self._moments(patches)[1] / noise
-        ratio = torch.where(inside, ratio, torch.full_like(ratio, math.inf)).sort().values  # outside last
-        # the lower median of the inside points by a gather at a computed index: a fixed shape, which exports
-        middle = ((inside.sum() - 1) // 2).clamp_min(0).reshape(1)
-        return ratio.gather(0, middle), patches
+        return _lower_median(self._moments(patches)[1] / noise, inside), patches
 
     @staticmethod
     def _noise_power(variance: Tensor | None, std: Tensor, level: int) -> Tensor | None:
@@ -676,7 +698,8 @@ class PointTracker(nn.Module):
         return zr * pr - zi * pi, zr * pi + zi * pr
 
     def forward(
-        self, frame: Tensor, previous: Tensor, positions: Tensor, lost: Tensor, psr_mean: Tensor, *filters: Tensor
+        self, frame: Tensor, previous: Tensor, positions: Tensor, lost: Tensor, psr_mean: Tensor, *filters: Tensor,
+        noise_floor: Tensor | None = None,
     ) -> tuple[Tensor, ...]:
         """One tracking step (exportable: real tensors in and out).
 
@@ -684,7 +707,9 @@ class PointTracker(nn.Module):
             frame: ``(1, 1, H, W)`` gray frame; previous: the frame before it (same size, for the
             forward-backward test). positions: ``(P, 2)``. lost: ``(P,)`` bool. psr_mean: ``(P,)`` each point's
             running geometric-mean PSR (inf: none yet). filters: per level, finest first, ``(3, 2M + 1, P, M + 1)``
-            (see :class:`TrackerState`).
+            (see :class:`TrackerState`). noise_floor: ``(1,)`` the least noise variance of the frame (gray
+            levels^2; :meth:`step` measures it for a first step tracked again, :meth:`_low_snr_retry`); None: the
+            estimate alone.
         Returns:
             positions, lost, psr ``(P,)``, psr_mean and the filters after this frame.
         """
@@ -693,6 +718,8 @@ class PointTracker(nn.Module):
         measured = min(frame.shape[-2:]) >= 2 * BLOCK and (self.block_limit is not None or self.compression_reg > 0)
         ratio, compression = block_grid(frame) if measured else (None, None)
         noise = self._noise_variance(frame, compression)
+        if noise is not None and noise_floor is not None:
+            noise = torch.maximum(noise, noise_floor)
         start = torch.where(torch.isfinite(positions), positions, torch.zeros_like(positions))  # lost: where frozen
         d = torch.zeros_like(positions)
         fine_weight = self._fine_weight(ratio)
@@ -859,18 +886,71 @@ class PointTracker(nn.Module):
 
     def step(self, frame: Tensor, state: TrackerState, compile: bool = False) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``; ``compile``: run :meth:`forward` through
-        ``torch.compile`` (see :meth:`track`)."""
+        ``torch.compile`` (see :meth:`track`). A first step whose matches are weak and whose residuals show
+        noise that the frame's estimate under-read is tracked again by the low-SNR twin (:meth:`_low_snr_retry`)."""
         if state.low_snr:
             return replace(self.low_snr_tracker.step(frame, replace(state, low_snr=False), compile), low_snr=True)
         forward = self._compiled() if compile else self
         frame = self._frame(frame)
         if self.blur_match is None:
-            return self._advance(forward, frame, state)
+            return self._low_snr_retry(frame, state, self._advance(forward, frame, state), compile)
         streak = self._streak(frame, state.streak)
         if streak is not None or state.template:
             previous = None if state.template else state.frame  # a first streak: was it there already?
-            return self._streak_matched_step(forward, frame, state, streak, previous)
-        return self._blur_matched_step(forward, frame, state)
+            new = self._streak_matched_step(forward, frame, state, streak, previous)
+        else:
+            new = self._blur_matched_step(forward, frame, state)
+        return self._low_snr_retry(frame, state, new, compile)
+
+    def _low_snr_retry(self, frame: Tensor, state: TrackerState, new: TrackerState, compile: bool) -> TrackerState:
+        """``new``, the first step from ``state`` (no point has a PSR history yet) into ``frame`` ``(1, 1, H, W)``, or
+        that step tracked again by the low-SNR twin where its matches are weak and its residuals show the SNR of noise
+        that the frame's estimate under-read.
+
+        :meth:`init` decides on the first frame's noise estimate, and a codec that stored dark frames at a high quality
+        removed the noise's finest differences, which that estimate reads (a fifth to a third of the noise on the real
+        pairs under ``dark_jpeg``), while the filters' band keeps the rest. Where the first step's geometric-mean PSR
+        (:meth:`_frame_psr`) is below ``low_snr_psr``, its residual SNR (:meth:`first_step_noise`) below a quarter of
+        ``low_snr`` (registration error and deformation lower the residual SNR of clean frames to 7.5-170 on the shared
+        real pairs, also under the stress sets' low contrast and illumination, and to 11-28 on the synthetic sequences;
+        noise gives the dark ones 1-3) and its residual noise above the frame's estimate, the twin is trained on the
+        first frame and tracks this one with that noise as the frame's least noise (``noise_floor``). Only this step:
+        its filters were trained on one frame and carry all of its noise, and from the second step on the sample memory
+        averages the noise (kept for every later frame, the floor lowered the precision of the DAVIS round trips of surf
+        and mallard-water, 0.107 -> 0.330 and 0.124 -> 0.428 px). Eager and compiled steps only; an exported step keeps
+        the first decision (the runtime retries with graphs of its own)."""
+        if (self.low_snr_tracker is None or self.low_snr_psr is None or self.noise_reg == 0 or exporting()
+                or not bool(torch.isinf(state.psr_mean).all())):
+            return new
+        if not float(self._frame_psr(new.psr, new.lost)) < self.low_snr_psr:
+            return new
+        snr, noise = self.first_step_noise(frame, state.filters[0], new.positions, new.lost)
+        if not (float(snr) < self.low_snr_residual and float(noise) > float(self._noise_variance(frame))):
+            return new
+        twin = self.low_snr_tracker
+        start = replace(twin.init(state.frame, state.positions, switch=False), noise_floor=noise)
+        return replace(twin.step(frame, start, compile), low_snr=True)
+
+    def first_step_noise(
+        self, frame: Tensor, template: Tensor, positions: Tensor, lost: Tensor
+    ) -> tuple[Tensor, Tensor]:
+        """Residual SNR and noise variance ``(1,)`` (gray levels^2) of a first step, measured in the band of level
+        0's filters: each point's level-0 sample in ``frame`` ``(1, 1, H, W)`` at its new position ``(P, 2)`` less
+        its sample in the first frame, which ``template``, the level-0 filters :meth:`init` trained on that one
+        sample ``(3, 2M + 1, P, M + 1)``, holds (``A = Y conj(X)``), in power over twice the power of unit white
+        noise in a sample (two noisy samples): the noise variance over the patch variance (the samples are
+        normalised). The SNR is the lower median over the points not ``lost`` ``(P,)`` of its inverse, the noise
+        the lower median of it times the patch variance (inf where every point is lost). Registration error and
+        deformation add to both, so the noise reads above the frame's on clean frames (2-40 times the estimate on
+        the shared real pairs) and near it in noise (0.6-1.6 times on them under the stress sets' darkness)."""
+        keep = ~lost
+        centres = torch.where(keep.unsqueeze(-1), positions, torch.zeros_like(positions))
+        zr, zi, std = self._sample(frame, _level_centres(centres, 0), 0)
+        ar, ai, _ = template.unbind(0)
+        label = self.label_0
+        residual = ((zr - ar / label).square() + (zi + ai / label).square()).sum(0).sum(1)  # (P,)
+        relative = residual / (2 * self.noise_spectrum_0.sum())
+        return _lower_median(1 / relative, keep), _lower_median(relative * std.square(), keep)
 
     def _streak(self, frame: Tensor, previous: Streak | None = None) -> Streak | None:
         """The straight motion blur ``(length, angle)`` of a ``(1, 1, H, W)`` frame; None where its cepstral scores
@@ -940,7 +1020,8 @@ class PointTracker(nn.Module):
     def _advance(forward, frame: Tensor, state: TrackerState) -> TrackerState:
         """One :meth:`forward` (or its compiled form) from ``state`` into ``frame`` ``(1, 1, H, W)``."""
         positions, lost, psr, psr_mean, *filters = forward(
-            frame, state.frame, state.positions, state.lost, state.psr_mean, *state.filters
+            frame, state.frame, state.positions, state.lost, state.psr_mean, *state.filters,
+            noise_floor=state.noise_floor,
         )
         return TrackerState(frame, positions, lost, psr, psr_mean, tuple(filters))
 
@@ -950,7 +1031,8 @@ class PointTracker(nn.Module):
         fresh = self._train(frame, state.positions)
         keep = state.lost[None, None, :, None]
         filters = tuple(torch.where(keep, old, new) for old, new in zip(state.filters, fresh.filters, strict=True))
-        return replace(fresh, lost=fresh.lost | state.lost, psr=state.psr, psr_mean=state.psr_mean, filters=filters)
+        return replace(fresh, lost=fresh.lost | state.lost, psr=state.psr, psr_mean=state.psr_mean, filters=filters,
+                       noise_floor=state.noise_floor)
 
     def _blur_matched_step(self, forward, frame: Tensor, state: TrackerState) -> TrackerState:
         """:meth:`forward` with the frame and the filters brought to one blur level (``blur_match``).

@@ -106,5 +106,5 @@ def test_the_bundle_holds_every_graph_job(tracking_bundle) -> None:
     """The parallel export (the fixture's default: one worker per core) wrote each job's graphs."""
     names = {name.strip() for job in GRAPH_JOBS for name in job.split(",")}
     assert names == {"init.onnx", "step.onnx", "profile.onnx", "relative_blur.onnx", "streak.onnx", "snr.onnx",
-                     "init_low_snr.onnx", "step_low_snr.onnx"}
+                     "init_low_snr.onnx", "step_low_snr.onnx", "first_step_noise.onnx"}
     assert names <= {path.name for path in tracking_bundle.iterdir()}

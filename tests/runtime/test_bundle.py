@@ -80,5 +80,8 @@ def test_graphs_of_another_revision_are_refused(bundle, tracking_bundle, tmp_pat
         Bundle(bundle, "triangulation")
     old_tracking = shutil.copytree(tracking_bundle, tmp_path / "tracking")
     _edit_manifest(old_tracking, lambda m: m.pop("revision"))  # written before the snr graph masked points itself
-    with pytest.raises(InputError, match="revision 1 tracking graphs; this runtime runs revision 2"):
+    with pytest.raises(InputError, match="revision 1 tracking graphs; this runtime runs revision 3"):
+        Bundle(old_tracking, "tracking")
+    _edit_manifest(old_tracking, lambda m: m.update(revision=2))  # written before the first-step retry's graphs
+    with pytest.raises(InputError, match="revision 2 tracking graphs; this runtime runs revision 3"):
         Bundle(old_tracking, "tracking")

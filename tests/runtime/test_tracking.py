@@ -18,7 +18,13 @@ from models.tracking.blur import radial_power_profile, relative_blur
 from models.tracking.compression import block_grid_ratio
 from models.tracking.motion_blur import motion_blur_streak
 from runtime.tracking import OnnxPointTracker
-from tests.models.tracking.test_point_tracker import _noisy_sequence, _smooth_image, _translate, weakening_streak_frames
+from tests.models.tracking.test_point_tracker import (
+    _fine_texture_pair,
+    _noisy_sequence,
+    _smooth_image,
+    _translate,
+    weakening_streak_frames,
+)
 
 pytestmark = pytest.mark.slow  # uses an exported bundle
 
@@ -179,13 +185,34 @@ def test_a_noisy_sequence_runs_on_the_low_snr_graphs_as_in_pytorch(tracking_bund
     assert reference.init(torch.from_numpy(images[0]), torch.from_numpy(start)).low_snr
     tracker = OnnxPointTracker(tracking_bundle, threads=1)
     tracks, lost, _ = tracker.track(images, start)
-    assert tracker.step_graph is tracker._graphs(True)[1]
+    assert tracker.on_low_snr_graphs
     ref_tracks, ref_lost, _ = reference.track([torch.from_numpy(f) for f in images], torch.from_numpy(start))
     np.testing.assert_array_equal(lost, ref_lost.numpy())
     assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
     clean, _, _ = _noisy_sequence(0.0)
     tracker.track([f.float().numpy() for f in clean[:2]], start)
-    assert tracker.step_graph is tracker._graphs(False)[1]
+    assert not tracker.on_low_snr_graphs and tracker.step_graph is tracker._graphs(False)[1]
+
+
+def test_a_first_step_in_under_read_noise_runs_again_on_the_low_snr_graphs_as_in_pytorch(tracking_bundle) -> None:
+    """Dark frames stored as JPEG at quality 90 (``_fine_texture_pair``): the ``snr`` graph keeps the usual pair,
+    the first step's PSRs and the ``first_step_noise`` graph send the sequence to the low-SNR graphs, as PyTorch
+    retries its first step with the twin (checked), and both track alike, over a third frame (the first again) too,
+    on the noise floor that step measured."""
+    frames, points, _ = _fine_texture_pair("dark_jpeg")
+    images, start = [f.float().numpy() for f in (*frames, frames[0])], points.float().numpy()
+    reference = PointTracker("ccot")
+    tensors = [torch.from_numpy(f) for f in images]
+    state = reference.init(tensors[0], torch.from_numpy(start))
+    assert not state.low_snr
+    state = reference.step(tensors[1], state)
+    assert state.low_snr
+    tracker = OnnxPointTracker(tracking_bundle, threads=1)
+    tracks, lost, _ = tracker.track(images, start)
+    assert tracker.on_low_snr_graphs
+    ref_tracks, ref_lost, _ = reference.track(tensors, torch.from_numpy(start))
+    np.testing.assert_array_equal(lost, ref_lost.numpy())
+    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
 
 
 def test_a_weakening_streak_continues_as_in_pytorch(tracking_bundle) -> None:

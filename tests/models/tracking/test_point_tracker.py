@@ -10,7 +10,7 @@ from kornia.geometry.transform import pyrdown
 
 from core.errors import InputError
 from core.streak import streak_blur
-from data.flow import homography_sequence
+from data.flow import homography_sequence, stress_frames
 from models.dcf import cosine_window, cubic_spline_fourier
 from models.dcf.dft import band_index
 from models.tracking import PointTracker, extract_patches, good_features_to_track
@@ -589,10 +589,11 @@ def test_a_blocked_frame_takes_the_estimate_of_the_coarser_levels(quality):
     taking theirs; at quality 20 (ratio about 1.6) the blocks still hold the scene and both settings track alike.
     (At quality 5 the 31 px level-0 patch is already slightly more precise than the coarser levels.) Without the
     compression term of the regulariser (``compression_reg`` 0), which at quality 3 makes levels 0 and 1 about as
-    precise as the coarser levels (0.53 against 0.52 px here)."""
+    precise as the coarser levels (0.53 against 0.52 px here), and without the first-step retry (``low_snr_psr``
+    None), which reads the block error as noise and hands the pair to the low-SNR twin."""
     frames, points = _compressed_pair(quality, 10.0)
-    tracks = {limit: PointTracker("ccot", block_limit=limit, compression_reg=0).double().track(frames, points)[0][1]
-              for limit in (None, 3.0)}
+    tracks = {limit: PointTracker("ccot", block_limit=limit, compression_reg=0, low_snr_psr=None).double()
+              .track(frames, points)[0][1] for limit in (None, 3.0)}
     errors = {k: (v - points - torch.tensor(_SHIFT, dtype=torch.float64)).norm(dim=-1).median().item()
               for k, v in tracks.items()}
     if quality == 3:
@@ -608,10 +609,10 @@ def test_a_blocked_frame_keeps_the_points_whose_peak_its_blocks_weaken(quality):
     them (within 1.5 px), and no point is flagged that the usual floor keeps; at quality 20 (not blocked) the
     setting changes nothing (a 5 px grid: enough points have a PSR between the floors). Without the compression
     term of the regulariser (``compression_reg`` 0), which raises the level-0 PSR of a blocked frame above both
-    floors."""
+    floors, and without the first-step retry (``low_snr_psr`` None), which would hand the pair to the twin."""
     frames, points = _compressed_pair(quality, 5.0)
-    runs = {floor: PointTracker("ccot", block_psr_threshold=floor, compression_reg=0).double().track(frames, points)
-            for floor in (2.5, 1.5)}
+    runs = {floor: PointTracker("ccot", block_psr_threshold=floor, compression_reg=0, low_snr_psr=None).double()
+            .track(frames, points) for floor in (2.5, 1.5)}
     (tracks, usual, psr), (_, lower, _) = (tuple(v[1] for v in run) for run in runs.values())
     if quality == 20:
         assert torch.equal(usual, lower) and not usual.all()
@@ -663,9 +664,11 @@ def test_in_a_blocked_frame_only_the_floor_flags_points(monkeypatch, quality):
     """With every point made weak against the frame and a forward-backward test made to fail always, every point
     is lost in a frame that is not blocked (quality 20); in a blocked frame (quality 3) the lost points are exactly
     those whose PSR is below ``block_psr_threshold``, whatever the tests on level 0 say (``compression_reg`` 0, as
-    above; the floor not lowered to the frame's PSRs, ``floor_relative`` None)."""
+    above; the floor not lowered to the frame's PSRs, ``floor_relative`` None; no first-step retry, ``low_snr_psr``
+    None)."""
     frames, points = _compressed_pair(quality, 8.0)
-    tracker = PointTracker("ccot", block_psr_threshold=3.0, compression_reg=0, floor_relative=None).double()
+    tracker = PointTracker("ccot", block_psr_threshold=3.0, compression_reg=0, floor_relative=None,
+                           low_snr_psr=None).double()
     monkeypatch.setattr(tracker, "_lost_threshold", lambda psr, lost: torch.full_like(psr, math.inf))
     monkeypatch.setattr(tracker, "_fails_backward", lambda weak, *args: weak)
     _, lost, psr = (v[1] for v in tracker.track(frames, points))
@@ -797,6 +800,8 @@ def test_window_and_low_snr_settings_are_checked():
     for value in (0.0, -0.4, float("nan")):
         with pytest.raises(InputError, match="floor_relative"):
             PointTracker("ccot", floor_relative=value)
+        with pytest.raises(InputError, match="low_snr_psr"):
+            PointTracker("ccot", low_snr_psr=value)
 
 
 def test_the_low_snr_twin_keeps_every_other_setting():
@@ -812,6 +817,7 @@ def test_the_low_snr_twin_keeps_every_other_setting():
     tracker = PointTracker(**settings, patch_size=(31, 21, 21), low_snr=50.0)
     twin = tracker.low_snr_tracker
     assert (twin.window, twin.sizes, twin.low_snr, twin.low_snr_tracker) == ("tukey", (31, 31, 31), None, None)
+    assert (tracker.low_snr_psr, twin.low_snr_psr) == (16.0, None)
     assert (tracker.first_step_sigmas, twin.first_step_sigmas) == (None, (2.0, 0.0, 0.0))
     names = ("method", "levels", "eta", "reg_rel", "newton", "search_sigmas", "psr_threshold", "floor_relative",
              "psr_relative",
@@ -900,6 +906,85 @@ def test_the_first_step_prior_holds_dark_points_to_the_coarse_estimate_in_their_
     assert float(block_grid_ratio(compressed[0][None, None])) > 1.5
     for got, want in zip(first.track(compressed, points), plain.track(compressed, points), strict=True):
         torch.testing.assert_close(got, want, rtol=0, atol=0)
+
+
+def _textured_pair(noise: float, shift: tuple[float, float]) -> tuple[list[torch.Tensor], torch.Tensor]:
+    """Two frames of the smooth texture, the second moved by ``shift`` px, each with its own white noise of std
+    ``noise``, and a grid of points."""
+    gen = torch.Generator().manual_seed(0)
+    image = _smooth_image(160, 160, 4)
+    frames = [_translate(image, shift[0] * t, shift[1] * t)
+              + noise * torch.randn(160, 160, generator=gen, dtype=torch.float64) for t in range(2)]
+    grid = torch.arange(30.0, 131.0, 10.0, dtype=torch.float64)
+    return frames, torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("shift", [(0.0, 0.0), (2.5, -1.5)])
+def test_first_step_noise_reads_the_white_noise_of_a_textured_pair(shift):
+    """Independent white noise of std 6 on both frames of a textured pair, still or moved by a sub-pixel shift:
+    the first step's residual noise reads its variance, 36, within 10 %, and its residual SNR the median over the
+    points of each 31 px crop's variance (a loop over the points) over 36, within 15 %; a still pair without noise
+    reads no noise."""
+    tracker = PointTracker().double()
+    for noise in (6.0, 0.0):
+        if noise == 0 and shift != (0.0, 0.0):
+            continue
+        frames, points = _textured_pair(noise, shift)
+        state = tracker.init(frames[0], points, switch=False)
+        frame = frames[1][None, None]
+        new = tracker._advance(tracker, frame, state)
+        snr, got = tracker.first_step_noise(frame, state.filters[0], new.positions, new.lost)
+        assert got.shape == snr.shape == (1,) and got.item() == pytest.approx(noise**2, abs=max(0.1 * noise**2, 1e-6))
+        if noise:
+            crops = [frames[1][round(y + shift[1]) - 15 : round(y + shift[1]) + 16,
+                               round(x + shift[0]) - 15 : round(x + shift[0]) + 16] for x, y in points.tolist()]
+            want = np.median([crop.var(unbiased=False).item() / noise**2 for crop in crops])
+            assert snr.item() == pytest.approx(want, rel=0.15)
+
+
+def _fine_texture_pair(condition: str | None = None) -> tuple[list[torch.Tensor], torch.Tensor, torch.Tensor]:
+    """Two frames of fine texture (Gaussian-blurred noise, std 1.5 px) of std 15 around mid-gray, the second moved
+    by (2.5, -1.5) px (cubic interpolation), under a stress ``condition`` (e.g. ``dark_jpeg``: 15 % brightness with
+    shot and read noise, then JPEG at quality 90; None: clean); a grid of points and their true positions."""
+    rng = np.random.default_rng(0)
+    texture = cv2.GaussianBlur(rng.normal(0, 1, (224, 224)), (0, 0), 1.5)
+    texture = 128 + 15 * texture / texture.std()
+    frames = np.stack([cv2.warpAffine(texture, np.float32([[1, 0, 2.5 * t], [0, 1, -1.5 * t]]), (224, 224),
+                                      flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT) for t in range(2)])
+    if condition is not None:
+        frames = stress_frames(frames, condition, 0)
+    grid = torch.arange(32.0, 193.0, 8.0, dtype=torch.float64)
+    points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
+    frames = [torch.from_numpy(f.round().clip(0, 255)).double() for f in frames]
+    return frames, points, points + torch.tensor([2.5, -1.5], dtype=torch.float64)
+
+
+def test_a_first_step_in_under_read_noise_is_tracked_again_by_the_twin(monkeypatch):
+    """Dark frames stored as JPEG at quality 90: the frame's noise estimate reads the codec-thinned finest
+    differences (SNR about 30, above ``low_snr``), so :meth:`init` keeps the Hann tracker; its first step's PSRs
+    are low and its residuals show the noise, so the twin tracks the step again with a noise floor of 0.5-1.1 times
+    the dark condition's noise variance before the codec (``0.6 s + 1.5^2`` at the mean signal ``s = 0.15 * 128``),
+    for that step only: far fewer points miss by more than 1 px than without the retry (``low_snr_psr`` None). The
+    clean texture keeps the Hann tracker."""
+    frames, points, truth = _fine_texture_pair("dark_jpeg")
+    tracker, plain = PointTracker().double(), PointTracker(low_snr_psr=None).double()
+    twin, floors = tracker.low_snr_tracker, []
+    step = twin.forward
+    monkeypatch.setattr(twin, "forward", lambda *args, noise_floor=None: floors.append(noise_floor)
+                        or step(*args, noise_floor=noise_floor))
+    state = tracker.init(frames[0], points)
+    assert not state.low_snr and tracker.signal_to_noise(frames[0][None, None], points).item() > 20
+    new = tracker.step(frames[1], state)
+    noise = 0.6 * 0.15 * 128 + 1.5**2
+    assert new.low_snr and len(floors) == 1 and 0.5 < floors[0].item() / noise < 1.1, floors
+    assert tracker.step(frames[0], new).low_snr and floors[1:] == [None]
+    old = plain.step(frames[1], plain.init(frames[0], points))
+    assert not old.low_snr
+    misses = [int(((s.positions - truth).norm(dim=-1) > 1).sum()) for s in (new, old)]
+    assert misses[0] <= 0.1 * misses[1] and misses[1] >= 30, misses
+    clean, points, _ = _fine_texture_pair()
+    state = tracker.step(clean[1], tracker.init(clean[0], points))
+    assert not state.low_snr and len(floors) == 2
 
 
 def weakening_streak_frames() -> list[np.ndarray]:
