@@ -98,8 +98,7 @@ class FirstStepNoiseGraph(nn.Module):
         self.tracker = tracker
 
     def forward(self, frame: Tensor, template: Tensor, positions: Tensor, lost: Tensor) -> Tensor:
-        snr, noise = self.tracker.first_step_noise(frame, template, positions, lost)
-        return torch.cat([snr, noise, self.tracker._noise_variance(frame)])
+        return torch.cat(self.tracker.first_step_noise(frame, template, positions, lost))
 
 
 class InitGraph(nn.Module):

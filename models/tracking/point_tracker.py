@@ -924,8 +924,8 @@ class PointTracker(nn.Module):
             return new
         if not float(self._frame_psr(new.psr, new.lost)) < self.low_snr_psr:
             return new
-        snr, noise = self.first_step_noise(frame, state.filters[0], new.positions, new.lost)
-        if not (float(snr) < self.low_snr_residual and float(noise) > float(self._noise_variance(frame))):
+        snr, noise, estimate = self.first_step_noise(frame, state.filters[0], new.positions, new.lost)
+        if not (float(snr) < self.low_snr_residual and float(noise) > float(estimate)):
             return new
         twin = self.low_snr_tracker
         start = replace(twin.init(state.frame, state.positions, switch=False), noise_floor=noise)
@@ -933,9 +933,10 @@ class PointTracker(nn.Module):
 
     def first_step_noise(
         self, frame: Tensor, template: Tensor, positions: Tensor, lost: Tensor
-    ) -> tuple[Tensor, Tensor]:
+    ) -> tuple[Tensor, Tensor, Tensor]:
         """Residual SNR and noise variance ``(1,)`` (gray levels^2) of a first step, measured in the band of level
-        0's filters: each point's level-0 sample in ``frame`` ``(1, 1, H, W)`` at its new position ``(P, 2)`` less
+        0's filters, and the frame's noise variance as estimated on the frame (:meth:`_noise_variance`) to compare
+        with: each point's level-0 sample in ``frame`` ``(1, 1, H, W)`` at its new position ``(P, 2)`` less
         its sample in the first frame, which ``template``, the level-0 filters :meth:`init` trained on that one
         sample ``(3, 2M + 1, P, M + 1)``, holds (``A = Y conj(X)``), in power over twice the power of unit white
         noise in a sample (two noisy samples): the noise variance over the patch variance (the samples are
@@ -950,7 +951,8 @@ class PointTracker(nn.Module):
         label = self.label_0
         residual = ((zr - ar / label).square() + (zi + ai / label).square()).sum(0).sum(1)  # (P,)
         relative = residual / (2 * self.noise_spectrum_0.sum())
-        return _lower_median(1 / relative, keep), _lower_median(relative * std.square(), keep)
+        snr, noise = _lower_median(1 / relative, keep), _lower_median(relative * std.square(), keep)
+        return snr, noise, self._noise_variance(frame)
 
     def _streak(self, frame: Tensor, previous: Streak | None = None) -> Streak | None:
         """The straight motion blur ``(length, angle)`` of a ``(1, 1, H, W)`` frame; None where its cepstral scores

@@ -1,6 +1,7 @@
 """The tracking bundle: its step, init, snr and streak graphs match PyTorch in onnxruntime at other frame sizes and
 point counts than exported, its manifest, bad export arguments."""
 
+import math
 from collections import Counter
 
 import cv2
@@ -51,6 +52,42 @@ def test_snr_graph_matches_pytorch(tracking_bundle) -> None:
             np.testing.assert_allclose(snr(frame.numpy(), chosen.numpy()), want.numpy(), rtol=1e-4)
         assert want.item() == np.inf
     assert Bundle(tracking_bundle, "tracking").section("thresholds")["low_snr"] == tracker.low_snr
+
+
+def test_first_step_noise_graph_and_floored_step_match_pytorch(tracking_bundle) -> None:
+    """The ``first_step_noise`` graph after a first step and the low-SNR step with a noise floor (0: none, and one
+    above the frame's noise) against PyTorch, at sizes and point counts other than exported, lost points among
+    them; with every point lost the residual SNR and noise read inf."""
+    bundle = Bundle(tracking_bundle, "tracking")
+    graph, floored = bundle.graph("first_step_noise"), bundle.graph("step_low_snr")
+    tracker = PointTracker("ccot").eval()
+    twin = tracker.low_snr_tracker
+    for height, width, points in ((96, 128, 8), (150, 200, 41)):
+        frame, previous, positions, lost, _, *filters = example_inputs(tracker, height, width, points, seed=6)
+        lost = lost.clone()
+        lost[::3] = True
+        with torch.no_grad():
+            moved, moved_lost = tracker(frame, previous, positions, lost, torch.full_like(lost, math.inf,
+                                                                                           dtype=frame.dtype),
+                                        *filters)[:2]
+            want = torch.cat(tracker.first_step_noise(frame, filters[0], moved, moved_lost))
+        got = graph(frame.numpy(), filters[0].numpy(), moved.numpy(), moved_lost.numpy())
+        np.testing.assert_allclose(got, want.numpy(), rtol=1e-4)
+        everyone = torch.ones_like(lost)
+        assert np.isinf(graph(frame.numpy(), filters[0].numpy(), moved.numpy(), everyone.numpy())[:2]).all()
+        twin_args = example_inputs(twin, height, width, points, seed=6)
+        tracks = []
+        for floor in (0.0, 50.0 * float(want[2])):
+            with torch.no_grad():
+                ref = twin(*twin_args, noise_floor=torch.full((1,), floor))
+            out = floored(*(a.numpy() for a in twin_args[:5]), np.full(1, floor, np.float32),
+                          *(a.numpy() for a in twin_args[5:]))
+            np.testing.assert_array_equal(out[1], ref[1].numpy())
+            np.testing.assert_allclose(out[0], ref[0].numpy(), rtol=1e-4, atol=1e-3)
+            tracks.append(out[0])
+        assert np.abs(tracks[0] - tracks[1]).max() > 0.01  # the floor changes the step
+    assert bundle.section("thresholds")["low_snr_psr"] == tracker.low_snr_psr == 16.0
+    assert bundle.section("thresholds")["low_snr_residual"] == tracker.low_snr_residual == 5.0
 
 
 def test_streak_graph_matches_pytorch(tracking_bundle) -> None:

@@ -933,7 +933,8 @@ def test_first_step_noise_reads_the_white_noise_of_a_textured_pair(shift):
         state = tracker.init(frames[0], points, switch=False)
         frame = frames[1][None, None]
         new = tracker._advance(tracker, frame, state)
-        snr, got = tracker.first_step_noise(frame, state.filters[0], new.positions, new.lost)
+        snr, got, estimate = tracker.first_step_noise(frame, state.filters[0], new.positions, new.lost)
+        torch.testing.assert_close(estimate, tracker._noise_variance(frame), rtol=0, atol=0)
         assert got.shape == snr.shape == (1,) and got.item() == pytest.approx(noise**2, abs=max(0.1 * noise**2, 1e-6))
         if noise:
             crops = [frames[1][round(y + shift[1]) - 15 : round(y + shift[1]) + 16,
