@@ -730,16 +730,18 @@ def test_signal_to_noise_reads_the_points_inside_only():
     assert tracker.signal_to_noise(image, torch.tensor(outside, dtype=torch.float64)).item() == math.inf
 
 
-def _noisy_sequence(noise: float) -> tuple[list[torch.Tensor], torch.Tensor, torch.Tensor]:
-    """Four frames of a smooth texture moving by (2.5, -1.5) px per frame with white noise of std ``noise``, a grid
-    of points and their true positions in the last frame."""
+def _noisy_sequence(noise: float, step: tuple[float, float] = (2.5, -1.5),
+                    frames: int = 4) -> tuple[list[torch.Tensor], torch.Tensor, torch.Tensor]:
+    """``frames`` frames of a smooth texture moving by ``step`` px per frame, each with its own white noise of std
+    ``noise``, a grid of points and their true positions in the last frame."""
     gen = torch.Generator().manual_seed(0)
     image = _smooth_image(160, 160, 4)
-    frames = [_translate(image, 2.5 * t, -1.5 * t) + noise * torch.randn(160, 160, generator=gen, dtype=torch.float64)
-              for t in range(4)]
+    out = [_translate(image, step[0] * t, step[1] * t) + noise * torch.randn(160, 160, generator=gen,
+                                                                             dtype=torch.float64)
+           for t in range(frames)]
     grid = torch.arange(30.0, 131.0, 10.0, dtype=torch.float64)
     points = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
-    return frames, points, points + torch.tensor([7.5, -4.5], dtype=torch.float64)
+    return out, points, points + (frames - 1) * torch.tensor(step, dtype=torch.float64)
 
 
 _TWIN_BAND = (0.7, 0.5, 0.5, 0.5)  # the default twin's band fractions, finest level first
@@ -908,17 +910,6 @@ def test_the_first_step_prior_holds_dark_points_to_the_coarse_estimate_in_their_
         torch.testing.assert_close(got, want, rtol=0, atol=0)
 
 
-def _textured_pair(noise: float, shift: tuple[float, float]) -> tuple[list[torch.Tensor], torch.Tensor]:
-    """Two frames of the smooth texture, the second moved by ``shift`` px, each with its own white noise of std
-    ``noise``, and a grid of points."""
-    gen = torch.Generator().manual_seed(0)
-    image = _smooth_image(160, 160, 4)
-    frames = [_translate(image, shift[0] * t, shift[1] * t)
-              + noise * torch.randn(160, 160, generator=gen, dtype=torch.float64) for t in range(2)]
-    grid = torch.arange(30.0, 131.0, 10.0, dtype=torch.float64)
-    return frames, torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2)
-
-
 @pytest.mark.parametrize("shift", [(0.0, 0.0), (2.5, -1.5)])
 def test_first_step_noise_reads_the_white_noise_of_a_textured_pair(shift):
     """Independent white noise of std 6 on both frames of a textured pair, still or moved by a sub-pixel shift:
@@ -929,7 +920,7 @@ def test_first_step_noise_reads_the_white_noise_of_a_textured_pair(shift):
     for noise in (6.0, 0.0):
         if noise == 0 and shift != (0.0, 0.0):
             continue
-        frames, points = _textured_pair(noise, shift)
+        frames, points, _ = _noisy_sequence(noise, shift, frames=2)
         state = tracker.init(frames[0], points, switch=False)
         frame = frames[1][None, None]
         new = tracker._advance(tracker, frame, state)
