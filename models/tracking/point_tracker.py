@@ -107,6 +107,9 @@ from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
 
 METHODS = ("ccot", "ccot_ff", "mosse")
 DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
+# label std (px of each level) per method: the continuous filters 0.7 (the precision of a narrower peak, the
+# docstring of PointTracker), MOSSE the thesis's 1 px per level
+DEFAULT_SIGMA = {"ccot": 0.7, "ccot_ff": 0.7, "mosse": 1.0}
 
 
 # kornia's ``pyrdown`` (5-tap binomial blur, then 2x2 averaging) as one separable 6-tap filter at stride 2
@@ -280,7 +283,12 @@ class PointTracker(nn.Module):
         for all levels or one per level, finest first; None: 31 px at level 0, 21 px at the coarser levels. The
         coarsest patch bounds the largest motion (about a quarter of its side, in coarsest-level pixels); the finer
         levels only correct the coarser estimate, and level 0's sets the precision (the module docstring).
-        sigma: label std in px of each level. eta: learning rate (default per method: 0.1, 1.0, 0.125).
+        sigma: label std in px of each level (default per method: 0.7, 0.7, 1.0). The label's spectrum weights the
+        frequencies of the response; a narrower one keeps more of the fine frequencies that place the peak, so the
+        continuous filters, whose level 0 sets the output's precision, use 0.7 rather than the 1 px of MOSSE (more
+        precise in noise and on real video; the wider label is the more robust where heavy noise or motion blur
+        leaves little fine texture over many frames: docs/results.md). eta: learning rate (default per method:
+        0.1, 1.0, 0.125).
         reg_rel: regulariser relative to the mean sample energy (``beta^2`` / ``eps``).
         newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
         level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
@@ -382,7 +390,7 @@ class PointTracker(nn.Module):
         method: str = "ccot",
         levels: int = 4,
         patch_size: int | tuple[int, ...] | None = None,
-        sigma: float = 1.0,
+        sigma: float | None = None,
         eta: float | None = None,
         reg_rel: float = 1e-2,
         newton_iterations: int | tuple[int, ...] = (2, 0, 0, 0),
@@ -442,6 +450,9 @@ class PointTracker(nn.Module):
                                  f"got {self.first_step_sigmas}")
         self.method, self.levels = method, levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
+        sigma = DEFAULT_SIGMA[method] if sigma is None else sigma
+        if not sigma > 0:
+            raise InputError(f"label sigma must be a positive std in px, got {sigma}")
         self.reg_rel, self.psr_threshold, self.psr_exclude = reg_rel, psr_threshold, psr_exclude
         self.psr_relative, self.fb_threshold = psr_relative, fb_threshold
         if floor_relative is not None and not floor_relative > 0:
