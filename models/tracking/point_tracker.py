@@ -38,8 +38,9 @@ coarser levels; the coarsest bounds the largest motion at about 80 px per frame)
 carry the Hann window, so the correlation weights a pixel by the window's square, and where noise or compression
 limits the precision, the scatter of a weighted shift estimate (``sqrt(sum w^4) / sum w^2`` per axis) is 1.36
 times that of KLT's uniform 21 px window for a 21 px patch and 1.13 times for a 31 px one. The filters keep only
-the lower half of the frequencies (band-limited, as in C-COT) and their DFTs are real matrix
-products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation folded in; Newton
+the lower frequencies (half of level 0's, 0.7 of the coarser levels'; band-limited, as in C-COT) and their
+DFTs are real matrix products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation
+folded in; Newton
 refinement on the Fourier series runs where it sets the output (level 0), the coarser levels take the grid peak
 refined by a parabola. A sequence whose first frame is noisy (its points' median patch-to-noise variance ratio
 below ``low_snr``: dark, noisy or heavily compressed video) goes to a low-SNR twin of the tracker with Tukey
@@ -118,7 +119,8 @@ _PYRDOWN_TAPS = (1.0, 5.0, 10.0, 10.0, 5.0, 1.0)
 _PYRDOWN_NOISE_GAIN = (sum(t * t for t in _PYRDOWN_TAPS) / sum(_PYRDOWN_TAPS) ** 2) ** 2
 _SEARCH_SIGMA = 3.0  # px: the default displacement prior of the fine levels (PointTracker's search_sigma)
 _FINE_PATCH, _COARSE_PATCH = 31, 21  # px: default patch side at level 0 and at the coarser levels (patch_size)
-_BAND = 0.5  # default fraction of each level's frequencies the filters keep (PointTracker's band)
+# default fractions of each level's frequencies the filters keep at level 0 and at the coarser levels (band)
+_FINE_BAND, _COARSE_BAND = 0.5, 0.7
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
 _BLOCK_LEVELS = 2  # the finest levels, on which an 8 px codec block spans more than 2 px (PointTracker's block_limit)
 WINDOWS = ("hann", "tukey")
@@ -327,9 +329,11 @@ class PointTracker(nn.Module):
         exclusion window.
         band: fraction of each level's highest frequency ``N // 2`` that the filters keep (band-limited
         filters as in C-COT; 1 keeps all), one for all levels or one per level, finest first. The filters,
-        the sample spectra and the transforms shrink with it. Default 0.5: at the coarser levels, which only have
-        to land the next level's search within a pixel, and at level 0, whose 31 px patch then has the spectrum
-        size of a 21 px patch at 0.7 (as precise on the clean real pairs, the wider patch's precision in noise).
+        the sample spectra and the transforms shrink with it. None (default): 0.5 at level 0, whose 31 px patch
+        then has the spectrum size of a 21 px patch at 0.7 (as precise on the clean real pairs, the wider patch's
+        precision in noise), and 0.7 at the coarser levels, whose estimates the finer levels start from: there the
+        finer frequencies keep more points on their peak in noise and JPEG than 0.5 did, at about a tenth of the
+        step's time (docs/results.md).
         noise_reg: weight of the noise-adaptive regulariser (0: off): the filter's denominator gains
         ``noise_reg`` times the expected power of the frame's noise in every frequency of the point's
         normalised sample (:meth:`_noise_power`), so frequencies where a blurred, dark or low-contrast patch
@@ -403,7 +407,7 @@ class PointTracker(nn.Module):
         psr_recover: float | None = 0.7,
         fb_threshold: float | None = 1.0,
         psr_exclude: int = 7,
-        band: float | tuple[float, ...] = _BAND,
+        band: float | tuple[float, ...] | None = None,
         noise_reg: float = 30.0,
         blur_match: float | None = 2.0,
         streak_score: float | None = -10.0,
@@ -482,6 +486,8 @@ class PointTracker(nn.Module):
         if not block_psr_threshold >= 0:
             raise InputError(f"block_psr_threshold must be a PSR >= 0, got {block_psr_threshold}")
         self.block_psr_threshold = block_psr_threshold
+        if band is None:
+            band = (_FINE_BAND,) + (_COARSE_BAND,) * (levels - 1)
         fractions = _per_level(band, levels, "band", float)
         if not all(0 < f <= 1 for f in fractions):
             raise InputError(f"band fractions must lie in (0, 1], got {fractions}")

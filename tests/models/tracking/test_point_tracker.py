@@ -328,9 +328,9 @@ def test_exported_pyramid_form_equals_the_eager_one(monkeypatch, dtype):
 
 
 def test_per_level_settings_are_checked():
-    # the default band 0.5 keeps round(0.5 * 15) = 8 frequencies of the 31 px level 0
-    assert PointTracker("ccot").sizes == (31, 21, 21, 21) and PointTracker("ccot").bands == (8, 5, 5, 5)
-    assert PointTracker("ccot", levels=2, newton_iterations=2).bands == (8, 5)
+    # the default band keeps round(0.5 * 15) = 8 frequencies of the 31 px level 0, round(0.7 * 10) = 7 of the 21 px
+    assert PointTracker("ccot").sizes == (31, 21, 21, 21) and PointTracker("ccot").bands == (8, 7, 7, 7)
+    assert PointTracker("ccot", levels=2, newton_iterations=2).bands == (8, 7)
     assert PointTracker("ccot", levels=3, patch_size=(21, 15, 25), newton_iterations=2).sizes == (21, 15, 25)
     with pytest.raises(InputError, match="one value per pyramid level"):
         PointTracker("ccot", patch_size=(21, 15))
@@ -797,7 +797,7 @@ def _noisy_sequence(noise: float, step: tuple[float, float] = (2.5, -1.5),
     return out, points, points + (frames - 1) * torch.tensor(step, dtype=torch.float64)
 
 
-_TWIN_BAND = (0.7, 0.5, 0.5, 0.5)  # the default twin's band fractions, finest level first
+_TWIN_BAND = (0.7, 0.7, 0.7, 0.7)  # the default twin's band fractions, finest level first
 _TWIN_FIRST = (2.0, 2.0, 0.0, 0.0)  # the default twin's first-step prior (px per level, finest first)
 _TWIN = dict(window="tukey", patch_size=31, band=_TWIN_BAND, low_snr=None, first_step_sigma=_TWIN_FIRST)
 
