@@ -36,20 +36,19 @@ about a pixel of scatter along it.
 Cost: the patches are small (default 31 px at level 0, which sets the accuracy, and 21 px, KLT's window, at the
 coarser levels; the coarsest bounds the largest motion at about 80 px per frame). Template and search patch both
 carry the Hann window, so the correlation weights a pixel by the window's square, and where noise or compression
-limits the precision, the scatter of a weighted shift estimate (``sqrt(sum w^4) / sum w^2`` per axis) is 1.36
-times that of KLT's uniform 21 px window for a 21 px patch and 1.13 times for a 31 px one. The filters keep only
-the lower frequencies (half of level 0's, 0.7 of the coarser levels'; band-limited, as in C-COT) and their
-DFTs are real matrix products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation
-folded in; Newton
-refinement on the Fourier series runs where it sets the output (level 0), the coarser levels take the grid peak
-refined by a parabola. A sequence whose first frame is noisy (its points' median patch-to-noise variance ratio
+limits the precision, the scatter of a weighted shift estimate (``sqrt(sum w^4) / sum w^2`` per axis) is 1.36 times
+that of KLT's uniform 21 px window for a 21 px patch and 1.13 times for a 31 px one. The filters keep only the
+lower frequencies (half of level 0's, 0.7 of the coarser levels'; band-limited, as in C-COT) and their DFTs are
+real matrix products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation folded in;
+Newton refinement on the Fourier series runs where it sets the output (level 0), the coarser levels take the grid
+peak refined by a parabola. A sequence whose first frame is noisy (its points' median patch-to-noise variance ratio
 below ``low_snr``: dark, noisy or heavily compressed video) goes to a low-SNR twin of the tracker with Tukey
-windows (flat over the middle half: 0.94 times KLT's scatter per axis at 31 px), 31 px patches at every level
-and at least 0.7 of level 0's frequencies (the noise regulariser already mutes those that hold only noise);
-on clean frames the Hann window is the more precise (a real scene's patch deforms and is occluded first at its
-border). A sequence whose first step has weak peaks and residuals that show noise the first frame's estimate
-under-read (dark video stored at a high JPEG quality, where the codec thinned the noise's finest differences) goes
-to the twin after that step, which is tracked again (:meth:`PointTracker._low_snr_retry`).
+windows (flat over the middle half: 0.94 times KLT's scatter per axis at 31 px), 31 px patches at every level and
+at least 0.7 of level 0's frequencies (the noise regulariser already mutes those that hold only noise); on clean
+frames the Hann window is the more precise (a real scene's patch deforms and is occluded first at its border). A
+sequence whose first step has weak peaks and residuals that show noise the first frame's estimate under-read (dark
+video stored at a high JPEG quality, where the codec thinned the noise's finest differences) goes to the twin after
+that step, which is tracked again (:meth:`PointTracker._low_snr_retry`).
 Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
 so that each transform is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is
 applied to the spectrum (the mean as a multiple of the window's spectrum), so the pixel-sized arrays are only read,
@@ -108,8 +107,8 @@ from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
 
 METHODS = ("ccot", "ccot_ff", "mosse")
 DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
-# label std (px of each level) per method: the continuous filters 0.7 (the precision of a narrower peak, the
-# docstring of PointTracker), MOSSE the thesis's 1 px per level
+# label std (px of each level) per method: the continuous filters 0.7 (more precise where patches deform, as in
+# real video: the docstring of PointTracker), MOSSE the thesis's 1 px per level
 DEFAULT_SIGMA = {"ccot": 0.7, "ccot_ff": 0.7, "mosse": 1.0}
 
 
@@ -286,11 +285,11 @@ class PointTracker(nn.Module):
         coarsest patch bounds the largest motion (about a quarter of its side, in coarsest-level pixels); the finer
         levels only correct the coarser estimate, and level 0's sets the precision (the module docstring).
         sigma: label std in px of each level (default per method: 0.7, 0.7, 1.0). The label's spectrum weights the
-        frequencies of the response; a narrower one keeps more of the fine frequencies that place the peak, so the
-        continuous filters, whose level 0 sets the output's precision, use 0.7 rather than the 1 px of MOSSE (more
-        precise in noise and on real video; the wider label is the more robust where heavy noise or motion blur
-        leaves little fine texture over many frames: docs/results.md). eta: learning rate (default per method:
-        0.1, 1.0, 0.125).
+        frequencies of the response. On a pure translation the 1 px label is slightly the more precise; where the
+        patch deforms (rotation, scale, real video) a narrower one is, and on the real benchmark sets the
+        continuous filters win more rows with 0.7 (the wider label stays the more robust where heavy noise or
+        motion blur leaves little fine texture over many frames: docs/results.md). eta: learning rate (default per
+        method: 0.1, 1.0, 0.125).
         reg_rel: regulariser relative to the mean sample energy (``beta^2`` / ``eps``).
         newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
         level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
