@@ -111,18 +111,25 @@ class Dataset:
     occluded: np.ndarray | None = None
 
 
-def detect(frame: np.ndarray, n: int, spacing: int = 3) -> np.ndarray:
-    """Up to ``n`` good features to track in a uint8 frame (quality 0.003, ``spacing`` px apart), as (x, y)
-    float64."""
-    return (
-        good_features_to_track(torch.from_numpy(frame.astype(np.float32)), n, 0.003, spacing)
-        .numpy()
-        .astype(np.float64)
-    )
+@dataclass(frozen=True)
+class Detector:
+    """Start points: up to ``n`` good features to track in a uint8 frame, corners above ``quality`` times the
+    strongest and ``spacing`` px apart (:func:`~models.tracking.good_features_to_track`), as (x, y) float64.
+    The defaults give about 2900 points on a 1024 x 436 Sintel frame, spacing 1 and quality 0.0003 give 10000."""
+
+    spacing: int = 3
+    quality: float = 0.003
+
+    def __call__(self, frame: np.ndarray, n: int) -> np.ndarray:
+        corners = good_features_to_track(torch.from_numpy(frame.astype(np.float32)), n, self.quality, self.spacing)
+        return corners.numpy().astype(np.float64)
 
 
-def sintel_dataset(folder: str | Path, n_points: int, spacing: int = 3, condition: str | None = None,
-                   seed: int = 0) -> Dataset:
+DETECTOR = Detector()
+
+
+def sintel_dataset(folder: str | Path, n_points: int, detector: Detector = DETECTOR,
+                   condition: str | None = None, seed: int = 0) -> Dataset:
     """Sintel folder from its first ground-truth flow on, over every consecutive ground-truth flow (one pair
     in ``../shared/data``), ground truth chained from flow with occluded and divergent points removed;
     ``condition``: the frames under that photometric stress condition (:func:`data.flow.stress_frames`, seeded),
@@ -132,36 +139,37 @@ def sintel_dataset(folder: str | Path, n_points: int, spacing: int = 3, conditio
     if condition is not None:
         frames = stress_frames(frames, condition, seed)
     frames = frames.round().clip(0, 255).astype(np.uint8)
-    points = detect(frames[0], n_points, spacing)
+    points = detector(frames[0], n_points)
     tracks, valid = tracks_from_flow(points, [p.flow for p in pairs], [p.bad for p in pairs])
     return Dataset(frames, points, tracks[-1], valid[-1])
 
 
-def _tracked(seq, n_points: int, spacing: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _tracked(seq, n_points: int, detector: Detector) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A generated sequence's frames as uint8 ``(T, H, W)``, start points detected in frame 0 and their ground
     truth (``seq.track``): frames, points, tracks ``(T, P, 2)``, valid ``(T, P)``."""
     frames = seq.frames.round().clip(0, 255).astype(np.uint8)
-    points = detect(frames[0], n_points, spacing)
+    points = detector(frames[0], n_points)
     return frames, points, *seq.track(points)
 
 
-def synthetic_dataset(n_frames: int, n_points: int, seed: int = 0, spacing: int = 3) -> Dataset:
+def synthetic_dataset(n_frames: int, n_points: int, seed: int = 0, detector: Detector = DETECTOR) -> Dataset:
     """Synthetic sequence (large motion, blur, noise, brightness change), ground truth at the last frame."""
-    frames, points, tracks, valid = _tracked(synthetic_sequence(frames=n_frames, seed=seed), n_points, spacing)
+    frames, points, tracks, valid = _tracked(synthetic_sequence(frames=n_frames, seed=seed), n_points, detector)
     return Dataset(frames, points, tracks[-1], valid[-1])
 
 
-def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0, spacing: int = 3) -> Dataset:
+def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0,
+                   detector: Detector = DETECTOR) -> Dataset:
     """The synthetic sequence under one stress condition (:mod:`data.flow.stress`), ground truth at the last
     frame."""
     seq = stress_sequence(condition, frames=n_frames, seed=seed)
-    frames, points, tracks, valid = _tracked(seq, n_points, spacing)
+    frames, points, tracks, valid = _tracked(seq, n_points, detector)
     occluded = seq.hidden(tracks).any(0) if seq.occluder is not None else None
     return Dataset(frames, points, tracks[-1], valid[-1], occluded)
 
 
-def homography_dataset(image: str | Path, condition: str, n_points: int, seed: int = 0, spacing: int = 3,
-                       frames: int = 6, moving: bool = True) -> Dataset:
+def homography_dataset(image: str | Path, condition: str, n_points: int, seed: int = 0,
+                       detector: Detector = DETECTOR, frames: int = 6, moving: bool = True) -> Dataset:
     """A real photograph (read as gray) through ``frames`` chained homographies under ``condition``
     (:func:`data.flow.homography_sequence`; ``moving=False``: a fixed camera) or, for ``stress_<condition>``,
     the undegraded views under that photometric stress condition (:func:`data.flow.stress_frames`, seeded: every
@@ -170,20 +178,21 @@ def homography_dataset(image: str | Path, condition: str, n_points: int, seed: i
     seq = homography_sequence(read_frame_gray(image), "none" if stress else condition, frames, seed, moving=moving)
     if stress:
         seq.frames = stress_frames(seq.frames, stress, seed)
-    frames_u8, points, tracks, valid = _tracked(seq, n_points, spacing)
+    frames_u8, points, tracks, valid = _tracked(seq, n_points, detector)
     return Dataset(frames_u8, points, tracks[-1], valid[-1])
 
 
-def homography_folder_dataset(folder: str | Path, n_points: int, spacing: int = 3) -> Dataset:
+def homography_folder_dataset(folder: str | Path, n_points: int, detector: Detector = DETECTOR) -> Dataset:
     """A real sequence with known homographies from its first frame (:func:`data.flow.read_homography_folder`:
     the Oxford sets' or HPatches' layout), ground truth at the last frame (points that stay 6 px inside every
     frame)."""
-    frames, points, tracks, valid = _tracked(read_homography_folder(folder), n_points, spacing)
+    frames, points, tracks, valid = _tracked(read_homography_folder(folder), n_points, detector)
     return Dataset(frames, points, tracks[-1], valid[-1])
 
 
-def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing: int = 3, condition: str = "none",
-                      strength: float = 1.0, seed: int = 0, start: int = 0, stride: int = 1) -> Dataset:
+def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, detector: Detector = DETECTOR,
+                      condition: str = "none", strength: float = 1.0, seed: int = 0,
+                      start: int = 0, stride: int = 1) -> Dataset:
     """``n_frames`` frames of a real video (a folder of images, :func:`~core.frames.read_frames`) from frame
     ``start`` on, every ``stride``-th (2 or more: the video's own motion that many times faster per frame), and
     then the same frames back to the first (``2 n_frames - 1`` in all), every frame degraded by ``condition`` at
@@ -207,7 +216,7 @@ def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, spacing:
         frames = [degrade(frame, condition, strength, rng, angle) for frame in frames]
     forward = np.stack(frames).round().clip(0, 255).astype(np.uint8)
     frames = np.concatenate([forward, forward[-2::-1]])
-    points = detect(frames[0], n_points, spacing)
+    points = detector(frames[0], n_points)
     return Dataset(frames, points, points.astype(np.float64), np.ones(len(points), dtype=bool))
 
 
@@ -583,6 +592,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--points", type=int, default=2000, help="start points to detect per dataset")
     parser.add_argument("--spacing", type=int, default=3,
                         help="least distance between detected points in px")
+    parser.add_argument("--quality", type=float, default=0.003,
+                        help="least corner response of a detected point, relative to the strongest (the defaults "
+                             "give about 2900 points on a Sintel frame, --spacing 1 --quality 0.0003 give 10000)")
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=(*METHODS, ORT))
     parser.add_argument("--bundle", metavar="DIR",
                         help=f"ccot tracking bundle for {ORT} (default: one exported into a temporary folder)")
@@ -610,12 +622,16 @@ def build_parser() -> argparse.ArgumentParser:
 def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[str, str]]:
     """The datasets the arguments ask for, by name, and the group of each (see :func:`summary`)."""
     datasets, groups = {}, {}
+    if not (args.spacing >= 1 and 0 < args.quality < 1):
+        raise InputError(f"--spacing must be at least 1 px and --quality in (0, 1), got {args.spacing} and "
+                         f"{args.quality}")
+    detector = Detector(args.spacing, args.quality)
     for folder in args.sintel:
         path = Path(folder)
         name = f"{path.parent.name}_{path.name}"
-        datasets[name], groups[name] = sintel_dataset(path, args.points, args.spacing), "pairs"
+        datasets[name], groups[name] = sintel_dataset(path, args.points, detector), "pairs"
         for condition in args.sintel_conditions:
-            datasets[f"{name}_{condition}"] = sintel_dataset(path, args.points, args.spacing, condition, args.seed)
+            datasets[f"{name}_{condition}"] = sintel_dataset(path, args.points, detector, condition, args.seed)
             groups[f"{name}_{condition}"] = f"pairs_{condition}"
     for camera in args.homography_cameras if args.homography else []:
         for condition in args.homography_conditions:
@@ -623,26 +639,26 @@ def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[s
             for image in args.homography:
                 path = Path(image)
                 name = f"{group}_{path.parent.name}_{path.stem}"
-                datasets[name] = homography_dataset(path, condition, args.points, args.seed, args.spacing,
+                datasets[name] = homography_dataset(path, condition, args.points, args.seed, detector,
                                                     moving=camera == "moving")
                 groups[name] = group
     for folder in args.homography_folder:
         path = Path(folder)
         name = f"homography_folder_{path.parent.name}_{path.name}"
-        datasets[name], groups[name] = homography_folder_dataset(path, args.points, args.spacing), "homography_folder"
+        datasets[name], groups[name] = homography_folder_dataset(path, args.points, detector), "homography_folder"
     for condition in args.roundtrip_conditions if args.roundtrip else []:
         group = "_".join(["roundtrip", *([condition] if condition != "none" else [])])
         for folder in args.roundtrip:
             name = f"{group}_{Path(folder).name}"
-            datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, args.spacing, condition,
+            datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, detector, condition,
                                                args.roundtrip_strength, args.seed, args.roundtrip_start,
                                                args.roundtrip_stride)
             groups[name] = group
     if args.synthetic or not (datasets or args.stress is not None):
-        datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, args.spacing)
+        datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, detector)
         groups["synthetic"] = "synthetic"
     for condition in STRESS_CONDITIONS if args.stress == [] else args.stress or []:
-        datasets[f"stress_{condition}"] = stress_dataset(condition, args.frames, args.points, args.seed, args.spacing)
+        datasets[f"stress_{condition}"] = stress_dataset(condition, args.frames, args.points, args.seed, detector)
         groups[f"stress_{condition}"] = "stress"
     return datasets, groups
 
@@ -670,7 +686,7 @@ def main(argv: list[str] | None = None) -> int:
         clock_name = "process_cpu_time" if args.device == "cpu" else "wall"
         print(json.dumps({"datasets": result, "summary": summary(result, groups), "device": args.device,
                           "threads": args.threads, "clock": clock_name, "timing": f"best of {args.repeats} runs",
-                          "tracker": settings}))
+                          "tracker": settings, "detector": {"spacing": args.spacing, "quality": args.quality}}))
     else:
         print("\n".join([table(result), *summary_lines(summary(result, groups))]))
     return 0

@@ -2,6 +2,7 @@
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -338,3 +339,24 @@ def test_homography_under_a_stress_condition(tmp_path, capsys):
 ])
 def test_plot_titles_wrap_long_names_after_underscores(name: str, lines: list[str]) -> None:
     assert point_tracking._wrapped(name, 22).split("\n") == lines
+
+
+def test_detector_quality_and_spacing_set_the_start_points():
+    """A lower ``quality`` admits weaker corners (a superset of the stronger ones here), every pair of points keeps
+    the ``spacing`` (Chebyshev distance, brute force over all pairs) and ``--quality`` reaches the detector."""
+    frame = np.random.default_rng(0).uniform(0, 255, (96, 128)).astype(np.uint8)
+    frame = cv2.GaussianBlur(frame, (0, 0), 2.0)
+    strong = point_tracking.Detector(spacing=2, quality=0.3)(frame, 5000)
+    weak = point_tracking.Detector(spacing=2, quality=0.01)(frame, 5000)
+    assert 0 < len(strong) < len(weak)
+    assert {tuple(p) for p in strong} <= {tuple(p) for p in weak}
+    gaps = np.abs(weak[:, None] - weak[None]).max(-1) + np.eye(len(weak)) * 1e9
+    assert gaps.min() > 2
+    args = point_tracking.build_parser().parse_args(["--quality", "0.3", "--spacing", "2"])
+    assert (args.quality, args.spacing) == (0.3, 2)
+
+
+@pytest.mark.parametrize("flags", [["--quality", "0"], ["--quality", "1.5"], ["--spacing", "0"]])
+def test_bad_detector_settings_are_refused(flags, capsys):
+    assert point_tracking.main(["--synthetic", "--frames", "3", "--points", "20", *flags]) == 2
+    assert "--spacing must be at least 1 px and --quality in (0, 1)" in capsys.readouterr().err
