@@ -36,11 +36,14 @@ inlier EPE (a KLT row without inliers counts as beaten on precision), names the 
 method's means.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
-OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA
-device by the wall clock after synchronisation. The JSON names the clock. Every method first runs once on the
-first two frames (warm-up; its wall time from a cold start, tracker construction included, is ``first_call_s``),
-then ``--repeats`` times (default 3) with the methods taking turns; the best time counts. ``--compile`` adds
-``ccot_compiled``: ``ccot`` with its per-frame step through ``torch.compile`` (compiled during the warm-up).
+OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA device by
+the wall clock after synchronisation. The JSON names the clock. The process keeps freed heap memory for reuse, as
+``infer.py track`` does (:func:`core.allocator.retain_freed_memory`; ``retained_freed_memory`` in the JSON says
+whether that took): the trackers' large temporaries are not faulted in afresh every frame. Every method first runs
+once on the first two frames (warm-up; its wall time from a cold start, tracker construction included, is
+``first_call_s``), then ``--repeats`` times (default 3) with the methods taking turns; the best time counts.
+``--compile`` adds ``ccot_compiled``: ``ccot`` with its per-frame step through ``torch.compile`` (compiled during the
+warm-up).
 ``--methods ... ccot_ort`` adds the deployment runtime's tracker (``runtime.tracking``: the exported ``ccot`` graphs
 in onnxruntime with ``--threads`` threads) on ``--bundle DIR`` or a bundle exported into a temporary folder.
 ``--tracker KEY=JSON ...`` sets arguments of the DCF trackers (:class:`~models.tracking.PointTracker`, e.g.
@@ -68,6 +71,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from core.allocator import retain_freed_memory
 from core.errors import InputError
 from core.frames import read_frame_gray, read_frames
 from core.settings import parse_tracker
@@ -537,6 +541,7 @@ def demo(report_dir: Path | None = None, quick: bool = False) -> list[tuple[str,
     """Small run (< 1 minute on 2 cores): synthetic sequence of 20 frames (10 quick), 150 points, all methods.
     With ``report_dir``, writes the EPE distributions and precision curves there; returns the figures."""
     data = synthetic_dataset(10 if quick else 20, 150, seed=1)
+    retain_freed_memory()  # as infer.py track
     with cpu_threads(1):
         result = evaluate({"synthetic": data}, repeats=1)
         print(table(result))
@@ -668,6 +673,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.repeats < 1:
         parser.error("--repeats must be at least 1")
+    retained = retain_freed_memory()
     try:
         settings = parse_tracker(args.tracker)
         with cpu_threads(args.threads):
@@ -686,7 +692,8 @@ def main(argv: list[str] | None = None) -> int:
         clock_name = "process_cpu_time" if args.device == "cpu" else "wall"
         print(json.dumps({"datasets": result, "summary": summary(result, groups), "device": args.device,
                           "threads": args.threads, "clock": clock_name, "timing": f"best of {args.repeats} runs",
-                          "tracker": settings, "detector": {"spacing": args.spacing, "quality": args.quality}}))
+                          "tracker": settings, "detector": {"spacing": args.spacing, "quality": args.quality},
+                          "retained_freed_memory": retained}))
     else:
         print("\n".join([table(result), *summary_lines(summary(result, groups))]))
     return 0

@@ -33,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
+    from core.allocator import retain_freed_memory
     from core.files import writable_folder, write_npz
     from core.frames import read_frames, read_points
     from core.threads import cpu_threads
@@ -51,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     frames, paths = read_frames(args.frames)
     points = read_points(args.points) if args.points else None
     writable_folder(Path(args.out).parent)  # an unwritable output fails before the tracking, not after it
+    retain_freed_memory()  # the step's large temporaries are reused, not faulted in again every frame
     start = time.perf_counter()
     with cpu_threads(args.threads):
         result = track_points(frames, points, args.detect, args.method, args.device, progress=True,
