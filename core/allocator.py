@@ -2,9 +2,10 @@
 
 glibc's ``malloc`` serves large blocks from fresh ``mmap`` pages and hands freed memory at the top of the heap back
 to the kernel; the next block of the same size is then faulted in and zeroed page by page again. A tracking step
-allocates and frees about a hundred tensors of megabytes each, so at 2000 points it spent about a sixth of its time
-in page faults (about 5000 per step), at 10000 points about a third. Keeping freed memory in the process removes
-them; the values computed do not change.
+allocates and frees about a hundred tensors of megabytes each; how often glibc hands them back depends on the order
+of the allocations. Repeating one step on a Sintel frame faulted about 5000 pages a step at 2000 points and 100000
+at 10000 points; in whole runs keeping freed memory made the benchmark's 10000-point step about 1.4x faster and
+``infer.py track`` 3-8 % faster at 2000 points (docs/results.md). The values computed do not change.
 """
 
 from __future__ import annotations
