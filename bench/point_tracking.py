@@ -124,6 +124,11 @@ class Detector:
     spacing: int = 3
     quality: float = 0.003
 
+    def __post_init__(self) -> None:
+        if not (self.spacing >= 1 and 0 < self.quality < 1):
+            raise InputError(f"the detector's spacing (--spacing) must be at least 1 px and its quality "
+                             f"(--quality) in (0, 1), got {self.spacing} and {self.quality}")
+
     def __call__(self, frame: np.ndarray, n: int) -> np.ndarray:
         corners = good_features_to_track(torch.from_numpy(frame.astype(np.float32)), n, self.quality, self.spacing)
         return corners.numpy().astype(np.float64)
@@ -627,9 +632,6 @@ def build_parser() -> argparse.ArgumentParser:
 def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[str, str]]:
     """The datasets the arguments ask for, by name, and the group of each (see :func:`summary`)."""
     datasets, groups = {}, {}
-    if not (args.spacing >= 1 and 0 < args.quality < 1):
-        raise InputError(f"--spacing must be at least 1 px and --quality in (0, 1), got {args.spacing} and "
-                         f"{args.quality}")
     detector = Detector(args.spacing, args.quality)
     for folder in args.sintel:
         path = Path(folder)

@@ -1,6 +1,7 @@
 """bench/point_tracking.py: one JSON object with every method's metrics, a plot, and the importable demo."""
 
 import json
+import re
 
 import cv2
 import numpy as np
@@ -358,5 +359,9 @@ def test_detector_quality_and_spacing_set_the_start_points():
 
 @pytest.mark.parametrize("flags", [["--quality", "0"], ["--quality", "1.5"], ["--spacing", "0"]])
 def test_bad_detector_settings_are_refused(flags, capsys):
+    message = "spacing (--spacing) must be at least 1 px and its quality (--quality) in (0, 1)"
     assert point_tracking.main(["--synthetic", "--frames", "3", "--points", "20", *flags]) == 2
-    assert "--spacing must be at least 1 px and --quality in (0, 1)" in capsys.readouterr().err
+    assert message in capsys.readouterr().err
+    with pytest.raises(InputError, match=re.escape(message)):
+        point_tracking.Detector(spacing=int(flags[1]) if flags[0] == "--spacing" else 3,
+                                quality=float(flags[1]) if flags[0] == "--quality" else 0.003)
