@@ -204,8 +204,14 @@ def extract_patches(image: Tensor, centres: Tensor, size: int) -> Tensor:
         flat = top_rows + (offsets * padded.shape[-1])[:, None, None]
         crops = torch.gather(padded.flatten()[None], 1, flat.flatten()[None]).view(flat.shape)
     else:
+        # every run of n pixels of the flat padded image as a row of an overlapping view; a crop is the n rows that
+        # start at its rows' first pixels, (n, P) flat indices. index_select copies whole rows, several times faster
+        # than advanced indexing, which computes each element's address alone
         stride = padded.stride(0)
-        crops = padded.as_strided((n, h, w, n), (stride, stride, 1, 1))[:, y0, x0]  # (size + 1, P, size + 1)
+        flat_image = padded.reshape(-1)
+        runs = flat_image.as_strided((flat_image.numel() - n + 1, n), (1, 1))
+        starts = (y0 * stride + x0)[None] + (torch.arange(n, device=centres.device) * stride)[:, None]
+        crops = runs.index_select(0, starts.flatten()).view(n, -1, n)  # (size + 1, P, size + 1)
     rows = _lerp(crops[:-1], crops[1:], frac[:, :, 1])
     return _lerp(rows[..., :-1], rows[..., 1:], frac[:, :, 0])
 
