@@ -357,11 +357,12 @@ def test_detector_quality_and_spacing_set_the_start_points():
     assert (args.quality, args.spacing) == (0.3, 2)
 
 
-@pytest.mark.parametrize("flags", [["--quality", "0"], ["--quality", "1.5"], ["--spacing", "0"]])
-def test_bad_detector_settings_are_refused(flags, capsys):
+@pytest.mark.parametrize("flags, setting", [(["--quality", "0"], {"quality": 0.0}),
+                                            (["--quality", "1.5"], {"quality": 1.5}),
+                                            (["--spacing", "0"], {"spacing": 0})])
+def test_bad_detector_settings_are_refused(flags, setting, capsys):
     message = "spacing (--spacing) must be at least 1 px and its quality (--quality) in (0, 1)"
     assert point_tracking.main(["--synthetic", "--frames", "3", "--points", "20", *flags]) == 2
     assert message in capsys.readouterr().err
-    with pytest.raises(InputError, match=re.escape(message)):
-        point_tracking.Detector(spacing=int(flags[1]) if flags[0] == "--spacing" else 3,
-                                quality=float(flags[1]) if flags[0] == "--quality" else 0.003)
+    with pytest.raises(InputError, match=re.escape(message)):  # a Detector built in code is refused as well
+        point_tracking.Detector(**setting)
