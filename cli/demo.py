@@ -11,6 +11,8 @@ HELP = "Run every capability on the project's own synthetic data, print the resu
 #: Demo parts: (benchmark module whose ``demo(report_dir, quick)`` runs it, title in the report).
 DEMOS = {"triangulation": ("bench.triangulation", "Triangulation (thesis ch. 2)"),
          "point_tracking": ("bench.point_tracking", "Point tracking: correlation filters vs KLT (ch. 3)"),
+         "point_tracking_speed": ("bench.point_tracking_scaling", "Point tracking: speed against the number of "
+                                  "points (ch. 3)"),
          "horizon_labels": ("bench.horizon_labels", "Horizon labels: the classical pipeline (ch. 4.2)"),
          "horizon_networks": ("bench.horizon_networks", "Horizon networks (ch. 4.3)"),
          "localization": ("bench.localization", "Localisation on a filter bank (ch. 4.4)"),
