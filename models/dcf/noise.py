@@ -5,8 +5,8 @@ The estimator is Immerkaer's (1996): the image convolved with the 3 x 3 differen
 white noise of std ``sigma`` with std ``6 sigma``. Where Immerkaer averages the absolute responses, this takes
 their median (``sigma = median |L| / (6 * 0.6745)``), so edges and texture, which give the large responses, do
 not count as noise. The median is taken over the responses on a grid of every ``stride``-th pixel (a 1/16 sample
-at stride 4 gives the same estimate within a few per cent on a 1024 x 436 frame) and computed by ``topk``, so the
-estimate exports to ONNX.
+at stride 4 gives the same estimate within a few per cent on a 1024 x 436 frame), selected by ``kthvalue`` and, in an
+exported graph, by ``topk``, which ONNX has.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 
 from core.errors import InputError
+from models.export_mode import exporting
 
 _NOISE_KERNEL = ((1.0, -2.0, 1.0), (-2.0, 4.0, -2.0), (1.0, -2.0, 1.0))
 _KERNEL_GAIN = 6.0  # sqrt of the sum of the squared taps: the std of the response to unit white noise
@@ -37,7 +38,11 @@ def image_noise_std(image: Tensor, stride: int = 1) -> Tensor:
         raise InputError(f"stride must be a positive integer, got {stride}")
     kernel = torch.tensor(_NOISE_KERNEL, dtype=image.dtype, device=image.device)[None, None]
     response = F.conv2d(image, kernel, stride=stride).flatten(1).abs()
-    median = response.topk(response.shape[1] // 2 + 1, dim=1, largest=False).values[:, -1]
+    rank = response.shape[1] // 2 + 1  # the lower median's
+    if exporting():
+        median = response.topk(rank, dim=1, largest=False).values[:, -1]
+    else:  # the same value, selected without sorting half of the responses (about 2.5x faster)
+        median = response.kthvalue(rank, dim=1).values
     return median / (_KERNEL_GAIN * _MAD_TO_STD)
 
 

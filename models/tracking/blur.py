@@ -24,6 +24,7 @@ from torch import Tensor, nn
 
 from core.errors import InputError
 from models.dcf.noise import image_noise_std
+from models.export_mode import exporting
 
 _MIN_BINS = 3  # fitted bins below which a comparison says "no change"
 
@@ -37,6 +38,20 @@ def symmetric_hann(n: int, like: Tensor) -> Tensor:
     """Symmetric Hann window of ``n`` samples (``torch.hann_window(n, periodic=False)``, written out so that an
     exported graph keeps ``n`` dynamic)."""
     return 0.5 - 0.5 * torch.cos(torch.arange(n, device=like.device).to(like.dtype) * (2 * math.pi / (n - 1)))
+
+
+def block_mean(image: Tensor, reduce: int) -> Tensor:
+    """Means of ``(B, C, H, W)`` images over ``reduce x reduce`` blocks, ``(B, C, H // reduce, W // reduce)``: the
+    values of ``F.avg_pool2d(image, reduce)`` to the bit (its sum in the same order), eager as a sum of strided
+    slices (several times faster on a CPU), exported as the pooling."""
+    if exporting():
+        return F.avg_pool2d(image, reduce)
+    h, w = image.shape[-2] // reduce * reduce, image.shape[-1] // reduce * reduce
+    total = image[..., 0:h:reduce, 0:w:reduce].clone()
+    for offset in range(1, reduce * reduce):
+        i, j = divmod(offset, reduce)
+        total += image[..., i:h:reduce, j:w:reduce]
+    return total / (reduce * reduce)
 
 
 def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4, reduce: int = 2) -> Tensor:
@@ -61,7 +76,7 @@ def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4, r
         raise InputError(f"reduce must be a positive integer that leaves 8 px a side, got {reduce} for "
                          f"{tuple(image.shape)}")
     if reduce > 1:
-        image = F.avg_pool2d(image, reduce)
+        image = block_mean(image, reduce)
     h, w = image.shape[-2:]
     window = symmetric_hann(h, image)[:, None] * symmetric_hann(w, image)
     mean = (image * window).sum((-2, -1), keepdim=True) / window.sum()

@@ -155,9 +155,19 @@ def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
             pyramid.append(F.conv2d(rows, kernel.view(1, 1, 1, -1), stride=(1, 2)))
             continue
         h, w = (image.shape[-2] - 4) // 2, (image.shape[-1] - 4) // 2
-        rows = sum(tap * image[..., i : i + 2 * h - 1 : 2, :] for i, tap in enumerate(taps))
-        pyramid.append(sum(tap * rows[..., i : i + 2 * w - 1 : 2] for i, tap in enumerate(taps)))
+        rows = _tap_sum([image[..., i : i + 2 * h - 1 : 2, :] for i in range(len(taps))], taps)
+        pyramid.append(_tap_sum([rows[..., i : i + 2 * w - 1 : 2] for i in range(len(taps))], taps))
     return pyramid
+
+
+def _tap_sum(slices: list[Tensor], taps: list[float]) -> Tensor:
+    """``taps[0] slices[0] + taps[1] slices[1] + ...`` summed left to right, into one accumulator through one
+    scratch tensor (no temporary per term; the same rounding as the plain sum)."""
+    total = slices[0] * taps[0]
+    scratch = torch.empty_like(total)
+    for part, tap in zip(slices[1:], taps[1:], strict=True):
+        total += torch.mul(part, tap, out=scratch)
+    return total
 
 
 def _lerp(start: Tensor, end: Tensor, weight: Tensor) -> Tensor:
@@ -828,9 +838,12 @@ class PointTracker(nn.Module):
         only the weak points (a few per cent, so the test costs almost nothing), and so does an exported graph
         (a shape that depends on the data); a compiled step, which would break its graph there, tests all of
         them. All give the same flags. One spare search (the last point's, its flag written to a slot past the
-        points and dropped) keeps the set from being empty, which onnxruntime's scatter does not take."""
+        points and dropped) keeps the exported set from being empty, which onnxruntime's scatter does not take; an
+        eager step without weak points searches nothing (most steps' second test, of the points coming back)."""
         if torch.compiler.is_compiling() and not exporting():
             return weak & ~(self._backward_error(previous, start, zr, zi, noise) <= self.fb_threshold)
+        if not exporting() and not bool(weak.any()):
+            return weak
         spare = torch.arange(weak.shape[0], device=weak.device)[-1:] + 1  # slot P, as a tensor (P is symbolic)
         index = torch.cat([weak.nonzero()[:, 0], spare])  # the weak points and the spare slot
         source = index.clamp_max(weak.shape[0] - 1)

@@ -8,7 +8,7 @@ import torch
 
 from core.errors import InputError
 from models.dcf import image_noise_std
-from models.tracking.blur import RadialPowerProfile, gaussian_blur, radial_power_profile, relative_blur
+from models.tracking.blur import RadialPowerProfile, block_mean, gaussian_blur, radial_power_profile, relative_blur
 
 
 def textured(h: int, w: int, seed: int, rectangles: int = 20) -> np.ndarray:
@@ -56,6 +56,19 @@ def test_profile_equals_numpy_reference(reduce, size):
         np.testing.assert_allclose(profile, _numpy_profile(image, 16, reduce), rtol=1e-9)
     module = RadialPowerProfile(bins=16, reduce=reduce)
     np.testing.assert_allclose(module(torch.from_numpy(images[0])[None, None]), got[:1])
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize(("reduce", "shape"), [(2, (2, 1, 37, 50)), (3, (1, 2, 31, 62)), (4, (1, 1, 16, 19))])
+def test_block_mean_equals_average_pooling(monkeypatch, dtype, reduce, shape):
+    # eager strided slices and the exported pooling against F.avg_pool2d itself; on the CPU equal to the bit
+    from models.tracking import blur
+
+    image = (torch.rand(shape, generator=torch.Generator().manual_seed(reduce)) * 255).to(dtype)
+    expected = torch.nn.functional.avg_pool2d(image, reduce)
+    assert torch.equal(block_mean(image, reduce), expected)
+    monkeypatch.setattr(blur, "exporting", lambda: True)
+    assert torch.equal(block_mean(image, reduce), expected)
 
 
 @pytest.mark.parametrize("variance", [1.0, 3.0, 8.0])

@@ -154,6 +154,22 @@ def test_backward_test_on_the_weak_points_only_equals_the_test_on_all(monkeypatc
             monkeypatch.undo()
 
 
+def test_an_eager_backward_test_without_weak_points_searches_nothing(monkeypatch):
+    tracker = PointTracker("ccot")
+    previous = torch.rand(1, 1, 64, 80, generator=torch.Generator().manual_seed(1)) * 255
+    start = torch.tensor([[20.0, 30.0], [50.0, 40.0]])
+    zr, zi, _ = tracker._sample(previous, start, 0)
+
+    def no_search(*args, **kwargs):
+        raise AssertionError("searched back without a weak point")
+
+    monkeypatch.setattr(tracker, "_backward_error", no_search)
+    none = torch.zeros(2, dtype=torch.bool)
+    assert torch.equal(tracker._fails_backward(none, previous, start, zr, zi), none)
+    with pytest.raises(AssertionError, match="searched back"):  # a weak point is searched
+        tracker._fails_backward(torch.tensor([True, False]), previous, start, zr, zi)
+
+
 def test_weak_peak_threshold_is_relative_to_the_geometric_mean_psr():
     tracker = PointTracker("ccot", psr_relative=0.3)
     psr = torch.tensor([4.0, 16.0, 9.0, 1.0, float("nan"), 100.0])
