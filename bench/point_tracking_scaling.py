@@ -1,8 +1,9 @@
 """Speed of the point trackers against the number of points: the default ``ccot`` (eager) and OpenCV's KLT, side by
 side in one run on one sequence, at several point counts.
 
-Per method and count the CPU time per frame (best of ``--repeats`` runs, the methods taking turns; the warm-up run
-on the first two frames is not counted) and the point-frames per second, with KLT in the run their ratio
+Per method and count the CPU time per frame (a whole run, the first frame's training included, over its ``T - 1``
+steps, as :mod:`bench.point_tracking` counts it; best of ``--repeats`` runs, the methods taking turns; the warm-up
+run on the first two frames is not counted) and the point-frames per second, with KLT in the run their ratio
 ``speed_vs_klt``. Per method a least-squares line through the times, ``ms per frame = per_frame_ms + per_point_us
 points / 1000``, splits each step into what every frame costs whatever the point count (image pyramids and, for
 ``ccot``, the frame's noise, compression, blur and streak analyses) and what each point adds. Two numbers follow
