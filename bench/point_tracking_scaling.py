@@ -37,6 +37,9 @@ from core.settings import parse_tracker
 from core.threads import cpu_threads
 from data.flow import synthetic_sequence
 
+# start points: dense enough that a 1024 x 436 Sintel frame yields 10000
+DETECTOR = Detector(spacing=1, quality=0.0003)
+
 
 def fit_line(points: np.ndarray, ms_per_frame: np.ndarray) -> dict:
     """Least-squares line through ``(points, ms_per_frame)`` ``(K,)`` (at least two distinct counts):
@@ -137,15 +140,15 @@ def plot(rows: list[dict], fits: dict, path: str | Path) -> None:
     plt.close(fig)
 
 
-def load_frames(args: argparse.Namespace) -> tuple[str, np.ndarray]:
-    """The sequence's name and uint8 frames ``(T, H, W)``: ``--frames-dir`` (its first ``--length``) or the
-    synthetic sequence of ``--length`` frames."""
-    if args.frames_dir:
-        frames, _ = read_frames(args.frames_dir, args.length)
-        name = str(args.frames_dir)
+def load_frames(frames_dir: str | None, length: int, seed: int = 0) -> tuple[str, np.ndarray]:
+    """The sequence's name and uint8 frames ``(T, H, W)``: the first ``length`` frames of ``frames_dir`` or, without
+    one, the synthetic sequence of ``length`` frames (``seed``)."""
+    if frames_dir:
+        frames, _ = read_frames(frames_dir, length)
+        name = str(frames_dir)
     else:
-        frames = synthetic_sequence(frames=args.length, seed=args.seed).frames
-        name = f"synthetic (seed {args.seed})"
+        frames = synthetic_sequence(frames=length, seed=seed).frames
+        name = f"synthetic (seed {seed})"
     if len(frames) < 2:
         raise InputError(f"{name}: timing needs at least two frames, got {len(frames)}")
     return name, np.round(np.stack(frames)).clip(0, 255).astype(np.uint8)
@@ -154,11 +157,11 @@ def load_frames(args: argparse.Namespace) -> tuple[str, np.ndarray]:
 def demo(report_dir: Path | None = None, quick: bool = False) -> list[tuple[str, str]]:
     """Small run (about 10 s on 2 cores): ``ccot`` and KLT on 6 frames (4 quick) of the synthetic sequence at 20 to
     3000 points (1000 quick), one thread. With ``report_dir``, writes the plot there; returns the figures."""
-    frames = synthetic_sequence(frames=4 if quick else 6, seed=1).frames.round().clip(0, 255).astype(np.uint8)
+    frames = load_frames(None, 4 if quick else 6, seed=1)[1]
     counts = [20, 200, 1000] if quick else [20, 200, 1000, 3000]
     retain_freed_memory()  # as infer.py track
     with cpu_threads(1):
-        points = Detector(1, 0.0003)(frames[0], counts[-1])
+        points = DETECTOR(frames[0], counts[-1])
         rows = time_counts(frames, points, counts, ["ccot", "klt"], repeats=1)
     fits = scaling(rows, ["ccot", "klt"])
     print(table(rows, fits))
@@ -178,8 +181,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0, help="synthetic sequence seed")
     parser.add_argument("--points", nargs="+", type=int, default=[20, 200, 1000, 2000, 5000, 10000],
                         help="point counts (each the strongest of one detection)")
-    parser.add_argument("--spacing", type=int, default=1, help="least distance between detected points in px")
-    parser.add_argument("--quality", type=float, default=0.0003,
+    parser.add_argument("--spacing", type=int, default=DETECTOR.spacing,
+                        help="least distance between detected points in px")
+    parser.add_argument("--quality", type=float, default=DETECTOR.quality,
                         help="least corner response of a detected point, relative to the strongest")
     parser.add_argument("--methods", nargs="+", default=["ccot", "klt"], choices=(*METHODS, ORT))
     parser.add_argument("--bundle", metavar="DIR", help=f"ccot tracking bundle for {ORT}")
@@ -220,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         settings = parse_tracker(args.tracker)
         with cpu_threads(args.threads):
-            name, frames = load_frames(args)
+            name, frames = load_frames(args.frames_dir, args.length, args.seed)
             points = Detector(args.spacing, args.quality)(frames[0], counts[-1])
             counts = [n for n in counts if n < len(points)] + [len(points)]
             if len(counts) < 2:
