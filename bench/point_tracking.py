@@ -72,6 +72,7 @@ import numpy as np
 import torch
 
 from core.allocator import retain_freed_memory
+from core.checks import check_device
 from core.errors import InputError
 from core.frames import read_frame_gray, read_frames
 from core.settings import parse_tracker
@@ -678,6 +679,7 @@ def main(argv: list[str] | None = None) -> int:
     retained = retain_freed_memory()
     try:
         settings = parse_tracker(args.tracker)
+        check_device(args.device, "--device")
         with cpu_threads(args.threads):
             datasets, groups = build_datasets(args)
             methods = [*args.methods, *([COMPILED] if args.compile else [])]

@@ -11,11 +11,15 @@ from the lines: ``asymptotic_speed_vs_klt``, the speed ratio that more and more 
 cost over the method's), and ``fixed_share``, the fraction of the method's time per frame that the per-frame part
 takes at each count. The start points are the strongest ``N`` corners of the first frame (one detection at the
 largest count, spacing 1 px and quality 0.0003 by default, so that a Sintel frame yields 10000), so every count
-tracks a subset of the next.
+tracks a subset of the next. A detection stops at about 13000 corners on a Sintel frame; ``--grid STEP`` starts from
+a regular grid instead (every ``STEP`` px, taken in a seeded random order so that every count covers the whole
+frame), for counts such as 1e5. ``--device cuda`` runs the DCF trackers on a GPU; every method is then timed by
+the wall clock after a synchronisation (KLT and the ONNX runtime stay on the CPU).
 
     python -m bench.point_tracking_scaling --frames-dir ../shared/data/sintel/alley_1/clean \\
         --points 20 200 1000 2000 5000 10000 --json --plot speed_vs_points.png
     python -m bench.point_tracking_scaling --synthetic --points 100 2000 6000
+    python -m bench.point_tracking_scaling --synthetic --grid 1 --points 1000 10000 100000 --device cuda
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import numpy as np
 
 from bench.point_tracking import METHODS, ORT, Detector, run_method
 from core.allocator import retain_freed_memory
+from core.checks import check_device
 from core.errors import InputError
 from core.files import atomic_path
 from core.frames import read_frames
@@ -55,21 +60,33 @@ def fit_line(points: np.ndarray, ms_per_frame: np.ndarray) -> dict:
     return {"per_frame_ms": float(intercept), "per_point_us": float(slope * 1e3), "r2": float(r2)}
 
 
+def grid_points(shape: tuple[int, int], step: int, seed: int = 0) -> np.ndarray:
+    """Start points ``(N, 2)`` (x, y) float64 on a regular grid every ``step`` px of a frame of ``shape`` (H, W), the
+    first at ``step // 2`` px from the top left, in an order drawn from ``seed``: the first ``n`` of them spread over
+    the whole frame for any ``n``."""
+    if step < 1:
+        raise InputError(f"the grid step (--grid) must be at least 1 px, got {step}")
+    ys, xs = np.mgrid[step // 2 : shape[0] : step, step // 2 : shape[1] : step]
+    points = np.stack([xs.ravel(), ys.ravel()], 1).astype(np.float64)
+    return points[np.random.default_rng(seed).permutation(len(points))]
+
+
 def time_counts(frames: np.ndarray, points: np.ndarray, counts: list[int], methods: list[str], repeats: int,
-                settings: dict | None = None, bundle: str | None = None) -> list[dict]:
-    """Per point count ``N`` of ``counts``, each method's best CPU time over ``repeats`` runs tracking the first
-    ``N`` of ``points`` ``(P, 2)`` through uint8 ``frames`` ``(T, H, W)``: ``ms_per_frame``,
+                settings: dict | None = None, bundle: str | None = None, device: str = "cpu") -> list[dict]:
+    """Per point count ``N`` of ``counts``, each method's best time over ``repeats`` runs tracking the first ``N`` of
+    ``points`` ``(P, 2)`` through uint8 ``frames`` ``(T, H, W)`` (the DCF trackers on ``device``; process CPU time
+    on the CPU, the wall clock otherwise, :func:`bench.point_tracking.clock`): ``ms_per_frame``,
     ``point_frames_per_s``, ``first_call_s`` (the warm-up on the first two frames, wall clock as in
     :func:`bench.point_tracking.evaluate`) and, with ``klt`` among the methods, ``speed_vs_klt``."""
     steps = len(frames) - 1
     rows = []
     for n in counts:
         subset = points[:n]
-        first_call = {m: _seconds(m, frames[:2], subset, settings, bundle, wall=True) for m in methods}
+        first_call = {m: _seconds(m, frames[:2], subset, settings, bundle, device, wall=True) for m in methods}
         seconds = {m: [] for m in methods}
         for _ in range(repeats):
             for method in methods:
-                seconds[method].append(_seconds(method, frames, subset, settings, bundle))
+                seconds[method].append(_seconds(method, frames, subset, settings, bundle, device))
         result = {}
         for method in methods:
             best = min(seconds[method])
@@ -83,10 +100,11 @@ def time_counts(frames: np.ndarray, points: np.ndarray, counts: list[int], metho
 
 
 def _seconds(method: str, frames: np.ndarray, points: np.ndarray, settings: dict | None, bundle: str | None,
-             wall: bool = False) -> float:
-    """One run's CPU seconds (:func:`bench.point_tracking.run_method`), or its wall seconds from the call on."""
+             device: str = "cpu", wall: bool = False) -> float:
+    """One run's seconds by ``device``'s clock (:func:`bench.point_tracking.run_method`), or its wall seconds from
+    the call on."""
     start = time.perf_counter()
-    elapsed = run_method(method, frames, points, "cpu", bundle, settings)[-1]
+    elapsed = run_method(method, frames, points, device, bundle, settings)[-1]
     return time.perf_counter() - start if wall else elapsed
 
 
@@ -107,9 +125,10 @@ def scaling(rows: list[dict], methods: list[str]) -> dict:
     return out
 
 
-def plot(rows: list[dict], fits: dict, path: str | Path) -> None:
-    """Two panels: ms per frame against the point count (log-log, the fitted lines dashed) and, with KLT in the
-    run, each method's speed relative to KLT's (1: as fast; dotted: the ratio more points tend to)."""
+def plot(rows: list[dict], fits: dict, path: str | Path, clock_name: str = "CPU") -> None:
+    """Two panels: ms per frame (by ``clock_name``'s clock) against the point count (log-log, the fitted lines
+    dashed) and, with KLT in the run, each method's speed relative to KLT's (1: as fast; dotted: the ratio more
+    points tend to)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -127,7 +146,7 @@ def plot(rows: list[dict], fits: dict, path: str | Path) -> None:
             ratio.plot(counts, [row["methods"][method]["speed_vs_klt"] for row in rows], "o-",
                        color=marks.get_color(), label=f"{method} (limit {line['asymptotic_speed_vs_klt']:.2f}x)")
             ratio.axhline(line["asymptotic_speed_vs_klt"], color=marks.get_color(), ls=":", lw=1)
-    times.set(xscale="log", yscale="log", xlabel="points", ylabel="CPU ms per frame", title="time per frame")
+    times.set(xscale="log", yscale="log", xlabel="points", ylabel=f"{clock_name} ms per frame", title="time per frame")
     ratio.axhline(1.0, color="gray", lw=0.8)
     ratio.set(xscale="log", xlabel="points", ylabel="point-frames/s over KLT's", title="speed relative to KLT",
               ylim=(0, None))
@@ -185,6 +204,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="least distance between detected points in px")
     parser.add_argument("--quality", type=float, default=DETECTOR.quality,
                         help="least corner response of a detected point, relative to the strongest")
+    parser.add_argument("--grid", type=int, metavar="STEP",
+                        help="start from a grid every STEP px (seeded order) instead of detected corners")
+    parser.add_argument("--device", default="cpu", help="torch device of the DCF trackers (cuda: wall clock)")
     parser.add_argument("--methods", nargs="+", default=["ccot", "klt"], choices=(*METHODS, ORT))
     parser.add_argument("--bundle", metavar="DIR", help=f"ccot tracking bundle for {ORT}")
     parser.add_argument("--tracker", nargs="+", metavar="KEY=JSON", help="settings of the DCF trackers")
@@ -221,26 +243,32 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--repeats and --threads must be at least 1, --length at least 2, and --points two or more "
                      "distinct positive counts")
     retained = retain_freed_memory()
+    clock_name = "process_cpu_time" if args.device == "cpu" else "wall"
     try:
         settings = parse_tracker(args.tracker)
+        check_device(args.device, "--device")
         with cpu_threads(args.threads):
             name, frames = load_frames(args.frames_dir, args.length, args.seed)
-            points = Detector(args.spacing, args.quality)(frames[0], counts[-1])
+            if args.grid is None:
+                points = Detector(args.spacing, args.quality)(frames[0], counts[-1])
+            else:
+                points = grid_points(frames.shape[1:], args.grid, args.seed)[: counts[-1]]
             counts = [n for n in counts if n < len(points)] + [len(points)]
             if len(counts) < 2:
-                raise InputError(f"{name}: only {len(points)} points detected, fewer than two of the counts asked")
-            rows = time_counts(frames, points, counts, args.methods, args.repeats, settings, args.bundle)
+                raise InputError(f"{name}: only {len(points)} start points, fewer than two of the counts asked")
+            rows = time_counts(frames, points, counts, args.methods, args.repeats, settings, args.bundle, args.device)
         fits = scaling(rows, args.methods)
         if args.plot:
-            plot(rows, fits, args.plot)
+            plot(rows, fits, args.plot, "CPU" if args.device == "cpu" else "wall")
     except InputError as err:
         sys.stderr.write(f"bench/point_tracking_scaling.py: error: {err}\n")
         return 2
     if args.json:
         print(json.dumps({"sequence": name, "frames": len(frames), "size": list(frames.shape[1:]),
-                          "counts": rows, "fits": fits, "threads": args.threads, "clock": "process_cpu_time",
-                          "timing": f"best of {args.repeats} runs", "tracker": settings,
-                          "detector": {"spacing": args.spacing, "quality": args.quality},
+                          "counts": rows, "fits": fits, "threads": args.threads, "clock": clock_name,
+                          "device": args.device, "timing": f"best of {args.repeats} runs", "tracker": settings,
+                          "start_points": {"grid": args.grid, "seed": args.seed} if args.grid else
+                          {"detector": {"spacing": args.spacing, "quality": args.quality}},
                           "retained_freed_memory": retained}))
     else:
         print(table(rows, fits))

@@ -26,6 +26,8 @@ import cv2
 import numpy as np
 import torch
 
+from core.checks import check_device
+from core.errors import InputError
 from core.threads import set_cpu_threads
 from data.sfm.bundler import read_bundler
 from data.sfm.synthetic import SyntheticScene, synthetic_cube_scene
@@ -279,8 +281,10 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.points < 1:
         parser.error("--points must be positive")
-    if args.device.startswith("cuda") and not torch.cuda.is_available():
-        parser.error("--device cuda: no CUDA device is available")
+    try:
+        check_device(args.device, "--device")
+    except InputError as err:
+        parser.error(str(err))
     set_cpu_threads(args.threads)
     methods = tuple(args.methods) + (("dogleg_compiled",) if args.compile else ())
     report, errors = run(args.points, args.noise, args.device, args.dtype, args.seed, args.repeats,

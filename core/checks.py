@@ -53,3 +53,18 @@ def check_positive(value: float, name: str) -> float:
     if not (value > 0 and value < float("inf")):
         raise InputError(f"{name} must be positive, got {value}")
     return value
+
+
+def check_device(device: str, name: str = "device") -> torch.device:
+    """``device`` as a ``torch.device`` when this machine has it, else ``InputError`` naming ``name``: an unknown
+    device string, or a CUDA device where CUDA is not available or has fewer devices than its index."""
+    try:
+        parsed = torch.device(device)
+    except RuntimeError as err:
+        raise InputError(f"{name} {device!r} is not a torch device: {err}") from None
+    if parsed.type == "cuda":
+        if not torch.cuda.is_available():
+            raise InputError(f"{name} {device!r} requested but CUDA is not available")
+        if parsed.index is not None and parsed.index >= torch.cuda.device_count():
+            raise InputError(f"{name} {device!r} requested but only {torch.cuda.device_count()} CUDA devices exist")
+    return parsed

@@ -9,6 +9,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from core.checks import check_device
 from core.errors import InputError
 from core.good_features import good_features
 from models.tracking.klt import klt_track
@@ -39,8 +40,7 @@ def track_points(
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(ALL_METHODS)}")
     if not frames:
         raise InputError("no frames to track")
-    if torch.device(device).type == "cuda" and not torch.cuda.is_available():
-        raise InputError(f"device {device!r} requested but CUDA is not available")
+    check_device(device)
     if (points is None) == (detect is None):
         raise InputError("give either start points or a number of points to detect")
     for t, frame in enumerate(frames):

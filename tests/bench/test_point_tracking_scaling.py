@@ -78,3 +78,34 @@ def test_bad_input_is_refused_with_the_input_named(tmp_path, capsys):
         with pytest.raises(SystemExit) as exit_info:
             scaling.main(argv)
         assert exit_info.value.code == 2
+
+
+def test_grid_points_are_every_step_px_in_a_seeded_order():
+    points = scaling.grid_points((10, 13), 3, seed=5)
+    expected = {(x, y) for y in range(1, 10, 3) for x in range(1, 13, 3)}  # from step // 2 = 1 px on
+    assert len(points) == len(expected) and set(map(tuple, points.astype(int).tolist())) == expected
+    np.testing.assert_array_equal(points, scaling.grid_points((10, 13), 3, seed=5))
+    assert not np.array_equal(points, scaling.grid_points((10, 13), 3, seed=6))
+    every = scaling.grid_points((200, 300), 1)
+    assert len(every) == 200 * 300
+    first = every[:400]  # a prefix covers the frame: each quarter holds about a quarter of it
+    quarters = np.histogram2d(first[:, 0], first[:, 1], bins=2, range=[[0, 300], [0, 200]])[0]
+    assert quarters.min() >= 70
+    with pytest.raises(InputError, match="grid step"):
+        scaling.grid_points((10, 10), 0)
+
+
+def test_a_run_from_a_grid_names_its_start_points_and_clock(capsys):
+    argv = ["--synthetic", "--length", "2", "--grid", "8", "--points", "10", "100000", "--methods", "klt",
+            "--repeats", "1", "--json"]
+    assert scaling.main(argv) == 0
+    result = json.loads(capsys.readouterr().out)
+    # the grid of a 384 x 512 frame every 8 px holds 48 * 64 points, fewer than the largest count asked
+    assert [row["points"] for row in result["counts"]] == [10, 48 * 64]
+    assert result["start_points"] == {"grid": 8, "seed": 0}
+    assert result["device"] == "cpu" and result["clock"] == "process_cpu_time"
+
+
+def test_a_device_that_is_not_there_is_refused(capsys):
+    assert scaling.main(["--synthetic", "--points", "5", "10", "--device", "gpu0"]) == 2
+    assert "--device 'gpu0' is not a torch device" in capsys.readouterr().err

@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from core.checks import check_positive, check_same_dtype, check_tensor
+from core.checks import check_device, check_positive, check_same_dtype, check_tensor
 from core.errors import InputError
 
 
@@ -40,3 +40,22 @@ def test_same_dtype_and_positive() -> None:
 def test_input_error_is_a_value_error() -> None:
     """Callers that catch ValueError (argparse-style code, numpy users) still catch every input error."""
     assert issubclass(InputError, ValueError)
+
+
+def test_check_device_accepts_the_cpu_and_names_a_bad_device():
+    assert check_device("cpu") == torch.device("cpu")
+    with pytest.raises(InputError, match="--device 'gpu0' is not a torch device"):
+        check_device("gpu0", "--device")
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="checks the refusal where CUDA is absent")
+def test_check_device_refuses_cuda_without_cuda():
+    with pytest.raises(InputError, match="device 'cuda:0' requested but CUDA is not available"):
+        check_device("cuda:0")
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
+def test_check_device_refuses_a_cuda_index_beyond_the_devices():
+    assert check_device("cuda:0").type == "cuda"
+    with pytest.raises(InputError, match="CUDA devices exist"):
+        check_device(f"cuda:{torch.cuda.device_count()}")
