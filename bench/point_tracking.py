@@ -275,9 +275,11 @@ def run_dcf(method: str, frames: np.ndarray, points: np.ndarray, device: str = "
     return tracks[-1].double().cpu().numpy(), lost[-1].cpu().numpy(), timer() - start
 
 
-def run_ort(frames: np.ndarray, points: np.ndarray, bundle: str | Path | None = None, threads: int = 1):
-    """The runtime's tracker (``runtime.tracking.OnnxPointTracker``) on ``bundle`` (default: a ccot bundle exported
-    into a temporary folder once); returns last positions, lost flags and CPU seconds spent tracking."""
+def run_ort(frames: np.ndarray, points: np.ndarray, bundle: str | Path | None = None, threads: int = 1,
+            device: str = "cpu"):
+    """The runtime's tracker (``runtime.tracking.OnnxPointTracker``, on the CPU) on ``bundle`` (default: a ccot bundle
+    exported into a temporary folder once); returns last positions, lost flags and seconds spent tracking (by the
+    clock of ``device``'s runs, as KLT's, see :func:`clock`)."""
     from runtime.tracking import OnnxPointTracker
 
     key = (None if bundle is None else str(bundle), threads)
@@ -289,9 +291,10 @@ def run_ort(frames: np.ndarray, points: np.ndarray, bundle: str | Path | None = 
         _ORT_TRACKERS[key] = OnnxPointTracker(bundle, threads=threads)
     tracker = _ORT_TRACKERS[key]
     images = [f.astype(np.float32) for f in frames]
-    start = time.process_time()
+    timer = clock(device)
+    start = timer()
     tracks, lost, _ = tracker.track(images, points)
-    return tracks[-1].astype(np.float64), lost[-1], time.process_time() - start
+    return tracks[-1].astype(np.float64), lost[-1], timer() - start
 
 
 def metrics(pred: np.ndarray, lost: np.ndarray, data: Dataset, seconds: float) -> dict:
@@ -321,7 +324,7 @@ def run_method(method: str, frames: np.ndarray, points: np.ndarray, device: str 
     if method == "klt":
         return run_klt(frames, points, device)
     if method == ORT:
-        return run_ort(frames, points, bundle, torch.get_num_threads())
+        return run_ort(frames, points, bundle, torch.get_num_threads(), device)
     compiled = method == COMPILED
     return run_dcf("ccot" if compiled else method, frames, points, device, compiled, settings)
 

@@ -366,3 +366,27 @@ def test_bad_detector_settings_are_refused(flags, setting, capsys):
     assert message in capsys.readouterr().err
     with pytest.raises(InputError, match=re.escape(message)):  # a Detector built in code is refused as well
         point_tracking.Detector(**setting)
+
+
+def test_every_method_of_a_run_is_timed_by_the_clock_of_its_device(monkeypatch):
+    """Off the CPU the DCF trackers are timed by the wall clock, and so are KLT and the runtime, which stay on the
+    CPU: a run's speed ratios compare one clock. A stand-in runtime tracker (no bundle export) takes 2 clock ticks."""
+
+    class Runtime:
+        def track(self, images, points):
+            n = len(points)
+            return np.zeros((len(images), n, 2)), np.zeros((len(images), n), bool), None
+
+    ticks = iter(range(100))
+    asked = []
+
+    def clock(device):
+        asked.append(device)
+        return lambda: 2.0 * next(ticks)
+
+    monkeypatch.setattr(point_tracking, "clock", clock)
+    monkeypatch.setitem(point_tracking._ORT_TRACKERS, ("stand-in", 1), Runtime())
+    frames, points = np.zeros((3, 8, 8), np.uint8), np.zeros((4, 2))
+    assert point_tracking.run_ort(frames, points, "stand-in", 1, "cuda")[-1] == 2.0
+    assert point_tracking.run_klt(frames, points, "cuda")[-1] == 2.0
+    assert asked == ["cuda", "cuda"]
