@@ -12,11 +12,11 @@
 # PYTHON (default python3) is the interpreter; DEVICE (default cuda) and POINTS (default "1000 10000 100000")
 # exist so that the script can be tried on a CPU with small counts: DEVICE=cpu POINTS="100 1000".
 set -euo pipefail
-out=${1:?usage: bench/point_tracking_gpu.sh OUT_DIR}
+mkdir -p "${1:?usage: bench/point_tracking_gpu.sh OUT_DIR}"
+out=$(cd "$1" && pwd)  # absolute: the runs start from the repository root
 python=${PYTHON:-python3}
 device=${DEVICE:-cuda}
 read -r -a points <<<"${POINTS:-1000 10000 100000}"
-mkdir -p "$out"
 cd "$(dirname "$0")/.."
 
 "$python" - "$device" <<'EOF' | tee "$out/device.txt"
