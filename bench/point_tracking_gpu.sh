@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The point tracker's GPU checks, as one run on a machine with a CUDA device (about 5 minutes on one GPU):
+# The point tracker's GPU checks, as one run on a machine with a CUDA device (not yet run on a GPU: none was lent):
 #   1. the tracker on CUDA against the CPU (tests/models/tracking: test_tracks_on_cuda_match_the_cpu);
 #   2. ccot on the GPU beside KLT on one CPU thread at 2000 points, accuracy included (the synthetic sequence);
 #   3. point-frames per second at 1e3, 1e4 and 1e5 points (a grid over the synthetic frames, every pixel, in a

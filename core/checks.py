@@ -57,11 +57,14 @@ def check_positive(value: float, name: str) -> float:
 
 def check_device(device: str, name: str = "device") -> torch.device:
     """``device`` as a ``torch.device`` when this machine has it, else ``InputError`` naming ``name``: an unknown
-    device string, or a CUDA device where CUDA is not available or has fewer devices than its index."""
+    device string, a device other than the CPU and CUDA (the project's ops run on these two), or a CUDA device where
+    CUDA is not available or has fewer devices than its index."""
     try:
         parsed = torch.device(device)
     except RuntimeError as err:
         raise InputError(f"{name} {device!r} is not a torch device: {err}") from None
+    if parsed.type not in ("cpu", "cuda"):
+        raise InputError(f"{name} {device!r}: only cpu and cuda devices are supported")
     if parsed.type == "cuda":
         if not torch.cuda.is_available():
             raise InputError(f"{name} {device!r} requested but CUDA is not available")

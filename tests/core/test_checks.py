@@ -46,6 +46,8 @@ def test_check_device_accepts_the_cpu_and_names_a_bad_device():
     assert check_device("cpu") == torch.device("cpu")
     with pytest.raises(InputError, match="--device 'gpu0' is not a torch device"):
         check_device("gpu0", "--device")
+    with pytest.raises(InputError, match="--device 'meta': only cpu and cuda devices are supported"):
+        check_device("meta", "--device")
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="checks the refusal where CUDA is absent")
