@@ -235,6 +235,11 @@ def clock(device: str):
     return time.process_time if device == "cpu" else time.perf_counter
 
 
+def clock_name(device: str) -> str:
+    """The name of :func:`clock`'s timer for ``device``, as the benchmarks' JSON gives it."""
+    return "process_cpu_time" if device == "cpu" else "wall"
+
+
 def run_klt(frames: np.ndarray, points: np.ndarray, device: str = "cpu") -> tuple[np.ndarray, np.ndarray, float]:
     """``cv2.calcOpticalFlowPyrLK`` (21x21, 3 levels) frame to frame; returns last positions, lost and seconds
     (by the clock of ``device``'s runs, see :func:`clock`)."""
@@ -696,10 +701,10 @@ def main(argv: list[str] | None = None) -> int:
         for m in ds["methods"].values():
             del m["epe"], m["tracked"]
     if args.json:
-        clock_name = "process_cpu_time" if args.device == "cpu" else "wall"
         print(json.dumps({"datasets": result, "summary": summary(result, groups), "device": args.device,
-                          "threads": args.threads, "clock": clock_name, "timing": f"best of {args.repeats} runs",
-                          "tracker": settings, "detector": {"spacing": args.spacing, "quality": args.quality},
+                          "threads": args.threads, "clock": clock_name(args.device),
+                          "timing": f"best of {args.repeats} runs", "tracker": settings,
+                          "detector": {"spacing": args.spacing, "quality": args.quality},
                           "retained_freed_memory": retained}))
     else:
         print("\n".join([table(result), *summary_lines(summary(result, groups))]))

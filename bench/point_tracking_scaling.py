@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.point_tracking import METHODS, ORT, Detector, run_method
+from bench.point_tracking import METHODS, ORT, Detector, clock_name, run_method
 from core.allocator import retain_freed_memory
 from core.checks import check_device
 from core.errors import InputError
@@ -125,10 +125,10 @@ def scaling(rows: list[dict], methods: list[str]) -> dict:
     return out
 
 
-def plot(rows: list[dict], fits: dict, path: str | Path, clock_name: str = "CPU") -> None:
-    """Two panels: ms per frame (by ``clock_name``'s clock) against the point count (log-log, the fitted lines
-    dashed) and, with KLT in the run, each method's speed relative to KLT's (1: as fast; dotted: the ratio more
-    points tend to)."""
+def plot(rows: list[dict], fits: dict, path: str | Path, clock: str = "process_cpu_time") -> None:
+    """Two panels: ms per frame (by the ``clock`` named, :func:`bench.point_tracking.clock_name`) against the point
+    count (log-log, the fitted lines dashed) and, with KLT in the run, each method's speed relative to KLT's (1: as
+    fast; dotted: the ratio more points tend to)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -146,7 +146,7 @@ def plot(rows: list[dict], fits: dict, path: str | Path, clock_name: str = "CPU"
             ratio.plot(counts, [row["methods"][method]["speed_vs_klt"] for row in rows], "o-",
                        color=marks.get_color(), label=f"{method} (limit {line['asymptotic_speed_vs_klt']:.2f}x)")
             ratio.axhline(line["asymptotic_speed_vs_klt"], color=marks.get_color(), ls=":", lw=1)
-    times.set(xscale="log", yscale="log", xlabel="points", ylabel=f"{clock_name} ms per frame", title="time per frame")
+    times.set(xscale="log", yscale="log", xlabel="points", ylabel=f"ms per frame ({clock})", title="time per frame")
     ratio.axhline(1.0, color="gray", lw=0.8)
     ratio.set(xscale="log", xlabel="points", ylabel="point-frames/s over KLT's", title="speed relative to KLT",
               ylim=(0, None))
@@ -243,7 +243,6 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--repeats and --threads must be at least 1, --length at least 2, and --points two or more "
                      "distinct positive counts")
     retained = retain_freed_memory()
-    clock_name = "process_cpu_time" if args.device == "cpu" else "wall"
     try:
         settings = parse_tracker(args.tracker)
         check_device(args.device, "--device")
@@ -259,13 +258,13 @@ def main(argv: list[str] | None = None) -> int:
             rows = time_counts(frames, points, counts, args.methods, args.repeats, settings, args.bundle, args.device)
         fits = scaling(rows, args.methods)
         if args.plot:
-            plot(rows, fits, args.plot, "CPU" if args.device == "cpu" else "wall")
+            plot(rows, fits, args.plot, clock_name(args.device))
     except InputError as err:
         sys.stderr.write(f"bench/point_tracking_scaling.py: error: {err}\n")
         return 2
     if args.json:
         print(json.dumps({"sequence": name, "frames": len(frames), "size": list(frames.shape[1:]),
-                          "counts": rows, "fits": fits, "threads": args.threads, "clock": clock_name,
+                          "counts": rows, "fits": fits, "threads": args.threads, "clock": clock_name(args.device),
                           "device": args.device, "timing": f"best of {args.repeats} runs", "tracker": settings,
                           "start_points": {"grid": args.grid, "seed": args.seed} if args.grid else
                           {"detector": {"spacing": args.spacing, "quality": args.quality}},
