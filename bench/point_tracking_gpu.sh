@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The point tracker's GPU checks, as one run on a machine with a CUDA device (not yet run on a GPU: none was lent;
 # on a CPU its benchmarks and the tracker's tests, the CUDA test skipped, also run under torch 2.11, the GPU
-# machine's; its ONNX export does not, and this script exports nothing):
+# machine's; the project's ONNX export stops there, and this script exports nothing):
 #   1. the tracker on CUDA against the CPU (tests/models/tracking: test_tracks_on_cuda_match_the_cpu);
 #   2. ccot on the GPU beside KLT on one CPU thread at 2000 points, accuracy included (the synthetic sequence);
 #   3. point-frames per second at 1e3, 1e4 and 1e5 points (a grid over the synthetic frames, every pixel, in a
