@@ -83,6 +83,13 @@ def files(tmp_path_factory) -> dict[str, str]:
     shutil.copytree(frames, broken)
     (broken / "001.png").write_bytes(b"\x89PNG broken")
     f["broken_frames"] = str(broken)
+    small = root / "small_frames"  # below the 16 px a side of the DCF trackers' pyramid and blur profile
+    small.mkdir()
+    for t in range(2):
+        cv2.imwrite(str(small / f"{t:03d}.png"), (np.random.default_rng(t).random((12, 12)) * 255).astype(np.uint8))
+    f["small_frames"] = str(small)
+    np.save(root / "centre_point.npy", np.array([[6.0, 6.0]]))
+    f["centre_point"] = str(root / "centre_point.npy")
     np.save(root / "nan_points.npy", np.array([[10.0, 10.0], [np.nan, 5.0]]))
     f["nan_points"] = str(root / "nan_points.npy")
     np.save(root / "points3.npy", np.ones((4, 3)))
@@ -195,6 +202,8 @@ CASES = [
                                       "{out}.npz"], "001.png"),
     ("track/frame-sizes-differ", "infer", ["track", "--frames", "{mixed_frames}", "--detect", "5", "--out",
                                            "{out}.npz"], "003.png"),
+    ("track/frames-too-small", "infer", ["track", "--frames", "{small_frames}", "--points", "{centre_point}",
+                                         "--out", "{out}.npz"], "frame 0"),
     ("track/nan-points", "infer", ["track", "--frames", "{frames}", "--points", "{nan_points}", "--out",
                                    "{out}.npz"], "{nan_points}"),
     ("track/points-wrong-shape", "infer", ["track", "--frames", "{frames}", "--points", "{points3}", "--out",

@@ -54,6 +54,12 @@ def block_mean(image: Tensor, reduce: int) -> Tensor:
     return total / (reduce * reduce)
 
 
+def profile_min_size(reduce: int = 2) -> int:
+    """The least image side (px) of which :func:`radial_power_profile` takes a profile at ``reduce``: 8 px a side
+    after the reduction."""
+    return 8 * reduce
+
+
 def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4, reduce: int = 2) -> Tensor:
     """Radial power profile of Hann-windowed, mean-free images.
 
@@ -72,7 +78,7 @@ def radial_power_profile(image: Tensor, bins: int = 64, noise_stride: int = 4, r
     _check_images(image, "radial_power_profile")
     if bins < _MIN_BINS:
         raise InputError(f"a radial power profile needs at least {_MIN_BINS} bins, got {bins}")
-    if reduce < 1 or min(image.shape[-2:]) < 8 * reduce:
+    if reduce < 1 or min(image.shape[-2:]) < profile_min_size(reduce):
         raise InputError(f"reduce must be a positive integer that leaves 8 px a side, got {reduce} for "
                          f"{tuple(image.shape)}")
     if reduce > 1:

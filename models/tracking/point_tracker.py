@@ -94,7 +94,7 @@ from models.dcf._signal import full_frequencies, wrap_index
 from models.dcf.continuous import fourier_series_refine
 from models.dcf.dft import RealDft2, band_frequencies, band_index
 from models.export_mode import exporting, outer_product, spread
-from models.tracking.blur import gaussian_blur, radial_power_profile, relative_blur
+from models.tracking.blur import gaussian_blur, profile_min_size, radial_power_profile, relative_blur
 from models.tracking.compression import (
     BLOCK,
     GRID_RAMP,
@@ -135,6 +135,13 @@ _LOW_SNR_PSR = 16.0  # default low_snr_psr: geometric-mean PSR of a first step b
 _RESIDUAL_SNR_MARGIN = 4.0  # a first step's residual SNR sends a sequence to the twin below low_snr over this
 
 
+def pyramid_min_size(levels: int) -> int:
+    """The least frame side (px) of which :func:`image_pyramid` builds ``levels`` levels: every level it blurs
+    must be at least 4 px, as its reflected border is 3 px, and level ``l + 1`` has ``(n + 1) // 2`` px of level
+    ``l``'s ``n``."""
+    return 1 if levels < 2 else 3 * 2 ** (levels - 2) + 1
+
+
 def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
     """``levels`` images ``(1, 1, H / 2^l, W / 2^l)`` of a ``(1, 1, H, W)`` frame, finest first.
 
@@ -145,6 +152,10 @@ def image_pyramid(frame: Tensor, levels: int) -> list[Tensor]:
     convolution per axis: the slices' bounds, nested floor divisions of the dynamic frame size, made the
     exporter's shape reasoning take more than half of the tracking graphs' export time.
     """
+    smallest = pyramid_min_size(levels)
+    if min(frame.shape[-2:]) < smallest:
+        raise InputError(f"a frame of {tuple(frame.shape[-2:])} px is too small for a {levels}-level pyramid: it "
+                         f"needs at least {smallest} px a side")
     taps = [t / 32 for t in _PYRDOWN_TAPS]
     pyramid = [frame]
     for _ in range(levels - 1):
@@ -645,12 +656,20 @@ class PointTracker(nn.Module):
             return None
         return variance * _PYRDOWN_NOISE_GAIN**level / (std.square() + 1e-12)
 
-    @staticmethod
-    def _frame(frame: Tensor) -> Tensor:
+    @property
+    def min_frame_size(self) -> int:
+        """The least frame side (px) this tracker takes: its pyramid's (:func:`pyramid_min_size`) and, with blur
+        matching, the blur profile's (:func:`~models.tracking.blur.profile_min_size`)."""
+        return max(pyramid_min_size(self.levels), profile_min_size() if self.blur_match is not None else 1)
+
+    def _frame(self, frame: Tensor) -> Tensor:
         if frame.dim() == 2:
             frame = frame[None, None]
         if frame.dim() != 4 or frame.shape[:2] != (1, 1):
             raise InputError(f"a frame must be (H, W) or (1, 1, H, W) gray, got shape {tuple(frame.shape)}")
+        if min(frame.shape[-2:]) < self.min_frame_size:
+            raise InputError(f"a frame of {tuple(frame.shape[-2:])} px is too small to track points in: the "
+                             f"{self.levels}-level tracker needs at least {self.min_frame_size} px a side")
         return frame
 
     @staticmethod

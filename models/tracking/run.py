@@ -55,6 +55,9 @@ def track_points(
         return {"tracks": tracks, "lost": lost, "psr": nan, "points": points, "frame_seconds": nan[:, 0]}
     start = time.perf_counter()
     tracker = PointTracker(method).to(device)
+    if min(frames[0].shape) < tracker.min_frame_size:
+        raise InputError(f"frame 0 is {frames[0].shape}: the {method} tracker needs frames of at least "
+                         f"{tracker.min_frame_size} px a side")
     requested: list[float] = []  # when each frame was asked for, i.e. when the one before it was tracked
 
     def tensors() -> Iterator[torch.Tensor]:

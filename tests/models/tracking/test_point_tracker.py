@@ -16,7 +16,7 @@ from models.dcf.dft import band_index
 from models.tracking import PointTracker, extract_patches, good_features_to_track
 from models.tracking.compression import block_grid_ratio
 from models.tracking.motion_blur import motion_blur_streak
-from models.tracking.point_tracker import displacement_prior, image_pyramid
+from models.tracking.point_tracker import displacement_prior, image_pyramid, pyramid_min_size
 from tests.models.tracking.test_blur import textured
 
 
@@ -327,6 +327,42 @@ def test_pyramid_equals_kornia_pyrdown_away_from_the_border():
     for level, (ours, ref) in enumerate(zip(pyramid, expected, strict=True)):
         assert ours.shape == ref.shape
         torch.testing.assert_close(ours[..., 4:-4, 4:-4], ref[..., 4:-4, 4:-4], rtol=1e-9, atol=1e-9 * 2**level)
+
+
+def test_pyramid_min_size_against_a_search_with_torch_padding_rule():
+    # the reference: the least frame side for which torch's reflect padding (3 px) accepts every level the pyramid
+    # blurs, each level (n + 1) // 2 px of the one below (checked on an odd and an even frame first)
+    assert [p.shape[-2:] for p in image_pyramid(torch.zeros(1, 1, 45, 46), 4)] == [(45, 46), (23, 23), (12, 12),
+                                                                                   (6, 6)]
+
+    def pads(n: int, levels: int) -> bool:
+        for _ in range(levels - 1):
+            try:
+                torch.nn.functional.pad(torch.zeros(1, 1, n, n), (2, 3, 2, 3), mode="reflect")
+            except RuntimeError:
+                return False
+            n = (n + 1) // 2
+        return True
+
+    for levels in range(1, 7):
+        least = next(n for n in range(1, 200) if pads(n, levels))
+        assert pyramid_min_size(levels) == least
+        assert len(image_pyramid(torch.zeros(1, 1, least, 3 * least), levels)) == levels
+        if least > 1:
+            with pytest.raises(InputError, match=f"needs at least {least} px"):
+                image_pyramid(torch.zeros(1, 1, 3 * least, least - 1), levels)
+
+
+def test_tracker_refuses_frames_below_its_minimum_and_tracks_at_it():
+    assert PointTracker("ccot").min_frame_size == 16  # the blur profile's 8 px a side after halving
+    assert PointTracker("ccot", blur_match=None).min_frame_size == pyramid_min_size(4) == 13
+    img = _smooth_image(64, 64, 3)
+    moved = _translate(img, 1.0, 0.0)
+    tracker = PointTracker("ccot")
+    tracks, lost, _ = tracker.track([img[:16, :16], moved[:16, :16]], torch.tensor([[8.0, 8.0]], dtype=torch.float64))
+    assert tracks.shape == (2, 1, 2) and lost.shape == (2, 1)
+    with pytest.raises(InputError, match=r"\(15, 16\) px is too small"):
+        tracker.track([img[:15, :16], moved[:15, :16]], torch.tensor([[8.0, 8.0]], dtype=torch.float64))
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
