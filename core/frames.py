@@ -61,17 +61,18 @@ def read_points(path: str | Path) -> np.ndarray:
         elif path.suffix == ".npz":
             with np.load(path) as data:
                 points = data["points"] if "points" in data else data[data.files[0]]
-        else:
+        else:  # commas read as blanks, so "x, y" and "x y" lines may mix
+            lines = path.read_text().replace(",", " ").splitlines()
             with warnings.catch_warnings():  # an empty file is reported below, not as a warning
                 warnings.simplefilter("ignore", UserWarning)
-                points = np.loadtxt(path, delimiter="," if path.suffix == ".csv" else None, ndmin=2)
-    except (ValueError, OSError, IndexError) as err:
+                points = np.loadtxt(lines, ndmin=2)
+    except (ValueError, OSError, IndexError, UnicodeDecodeError) as err:
         raise InputError(f"{path}: cannot read points ({err})") from err
     points = np.asarray(points, dtype=np.float64)
+    if points.size == 0:
+        raise InputError(f"{path}: the point set is empty")
     if points.ndim != 2 or points.shape[1] != 2:
         raise InputError(f"{path}: points must be (P, 2) (x, y), got shape {points.shape}")
-    if len(points) == 0:
-        raise InputError(f"{path}: the point set is empty")
     if not np.isfinite(points).all():
         raise InputError(f"{path}: points contain NaN or infinity")
     return points
