@@ -185,7 +185,11 @@ def homography_dataset(image: str | Path, condition: str, n_points: int, seed: i
     the undegraded views under that photometric stress condition (:func:`data.flow.stress_frames`, seeded: every
     frame at full strength), ground truth at the last frame."""
     stress = condition.removeprefix(STRESS_PREFIX) if condition.startswith(STRESS_PREFIX) else None
-    seq = homography_sequence(read_frame_gray(image), "none" if stress else condition, frames, seed, moving=moving)
+    photograph = read_frame_gray(image)
+    try:
+        seq = homography_sequence(photograph, "none" if stress else condition, frames, seed, moving=moving)
+    except InputError as err:  # the sequence's own checks do not know the file
+        raise InputError(f"{image}: {err}") from err
     if stress:
         seq.frames = stress_frames(seq.frames, stress, seed)
     frames_u8, points, tracks, valid = _tracked(seq, n_points, detector)

@@ -226,6 +226,12 @@ def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
         point_tracking.roundtrip_dataset(tmp_path, 3, 50, stride=0)
 
 
+def test_a_homography_image_too_small_is_refused_naming_the_file(tmp_path):
+    cv2.imwrite(str(tmp_path / "small.png"), np.full((20, 40), 128, np.uint8))
+    with pytest.raises(InputError, match=re.escape(f"{tmp_path / 'small.png'}: the image must be")):
+        point_tracking.homography_dataset(tmp_path / "small.png", "jpeg", 10)
+
+
 def test_tracker_settings_reach_the_dcf_trackers(capsys):
     """``--tracker`` sets PointTracker arguments (here one that changes the tracks); an unknown one is refused."""
     base = ["--synthetic", "--frames", "4", "--points", "80", "--methods", "ccot", "--repeats", "1", "--json"]
