@@ -10,7 +10,9 @@ HELP = "Track points through gray frames with correlation filters (or KLT) and s
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--frames", required=True, help="folder of frames (sorted by name) or a glob like 'clip/*.png'")
+    p.add_argument("--frames", required=True,
+                   help="folder of frames (sorted by name), a glob like 'clip/*.png' or a video file "
+                   "like clip.mp4 (decoded by OpenCV)")
     start = p.add_mutually_exclusive_group(required=True)
     start.add_argument("--points", help="start points in the first frame: .npy/.npz (P, 2) or text 'x y' lines")
     start.add_argument("--detect", type=int, help="detect this many good features to track in the first frame "

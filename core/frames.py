@@ -1,9 +1,10 @@
-"""Gray frames, frame folders or glob patterns, and point lists (the ``track`` command and the runtime's
+"""Gray frames, frame folders, glob patterns or video files, and point lists (the ``track`` command and the runtime's
 point tracker). Torch-free."""
 
 from __future__ import annotations
 
 import glob
+import os
 import warnings
 from pathlib import Path
 
@@ -13,6 +14,7 @@ import numpy as np
 from core.errors import InputError
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v")
 
 
 def read_frame_gray(path: str | Path) -> np.ndarray:
@@ -38,9 +40,35 @@ def frame_paths(spec: str | Path) -> list[Path]:
     return files
 
 
+def read_video_gray(path: str | Path, limit: int | None = None) -> list[np.ndarray]:
+    """The frames of a video file (OpenCV's decoders) as ``(H, W)`` float32 gray frames in [0, 255] (the first
+    ``limit`` only, if given); ``InputError`` for a file that does not open or holds no frame."""
+    path = Path(path)
+    # FFmpeg's own log lines would come before the one error line a bad file gets (-8: FFmpeg's AV_LOG_QUIET); read
+    # when OpenCV opens its first video, so a level the user set stays
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+    capture = cv2.VideoCapture(str(path))
+    frames: list[np.ndarray] = []
+    try:
+        while capture.isOpened() and (limit is None or len(frames) < limit):
+            ok, image = capture.read()
+            if not ok:
+                break
+            frames.append(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY).astype(np.float32))
+    finally:
+        capture.release()
+    if not frames:
+        raise InputError(f"{path}: not a readable video (no frame decoded)")
+    return frames
+
+
 def read_frames(spec: str | Path, limit: int | None = None) -> tuple[list[np.ndarray], list[Path]]:
-    """Gray frames ``(H, W)`` float32 in [0, 255] of a folder or glob, all of one size, and their paths (the first
-    ``limit`` only, if given)."""
+    """Gray frames ``(H, W)`` float32 in [0, 255] of a folder, glob or video file, all of one size, and their paths
+    (a video's frames as ``VIDEO#index``; the first ``limit`` only, if given)."""
+    video = Path(spec)
+    if video.is_file() and video.suffix.lower() in VIDEO_SUFFIXES:
+        frames = read_video_gray(video, limit)
+        return frames, [Path(f"{video}#{t}") for t in range(len(frames))]
     paths = frame_paths(spec)[:limit]
     frames = [read_frame_gray(p) for p in paths]
     for path, frame in zip(paths, frames, strict=True):

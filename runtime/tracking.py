@@ -326,7 +326,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = CommandParser(prog="runtime.tracking", description=__doc__,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
     add_runtime_arguments(parser)
-    parser.add_argument("--frames", required=True, help="folder of frames (sorted by name) or a glob like 'clip/*.png'")
+    parser.add_argument("--frames", required=True,
+                        help="folder of frames (sorted by name), a glob like 'clip/*.png' or a video file "
+                        "like clip.mp4 (decoded by OpenCV)")
     start = parser.add_mutually_exclusive_group(required=True)
     start.add_argument("--points", help="start points: .npy/.npz (P, 2) or text 'x y' lines")
     start.add_argument("--detect", type=int, help="detect this many good features to track in the first frame")

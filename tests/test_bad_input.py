@@ -88,6 +88,8 @@ def files(tmp_path_factory) -> dict[str, str]:
     for t in range(2):
         cv2.imwrite(str(small / f"{t:03d}.png"), (np.random.default_rng(t).random((12, 12)) * 255).astype(np.uint8))
     f["small_frames"] = str(small)
+    (root / "garbage.mp4").write_bytes(b"not a video at all")
+    f["corrupt_video"] = str(root / "garbage.mp4")
     np.save(root / "centre_point.npy", np.array([[6.0, 6.0]]))
     f["centre_point"] = str(root / "centre_point.npy")
     np.save(root / "nan_points.npy", np.array([[10.0, 10.0], [np.nan, 5.0]]))
@@ -202,6 +204,8 @@ CASES = [
                                       "{out}.npz"], "001.png"),
     ("track/frame-sizes-differ", "infer", ["track", "--frames", "{mixed_frames}", "--detect", "5", "--out",
                                            "{out}.npz"], "003.png"),
+    ("track/corrupt-video", "infer", ["track", "--frames", "{corrupt_video}", "--detect", "5", "--out",
+                                      "{out}.npz"], "{corrupt_video}"),
     ("track/frames-too-small", "infer", ["track", "--frames", "{small_frames}", "--points", "{centre_point}",
                                          "--out", "{out}.npz"], "frame 0"),
     ("track/nan-points", "infer", ["track", "--frames", "{frames}", "--points", "{nan_points}", "--out",

@@ -1,11 +1,15 @@
 """``infer.py track`` end to end on small synthetic frames, and its one-line errors for bad input."""
 
+import subprocess
+import sys
+
 import cv2
 import numpy as np
 import pytest
 
 import infer
 from data.flow import synthetic_sequence
+from tests.cli.conftest import ROOT
 
 
 @pytest.fixture(scope="module")
@@ -50,6 +54,38 @@ def test_track_detect_and_points(frame_dir, tmp_path, method, capsys):
     assert infer.main([*args, "--out", str(out), "--video", str(video)]) == 0
     assert np.load(out)["lost"][:, 1].all()  # outside the image: lost, not silently kept
     assert video.stat().st_size > 0
+
+
+def test_track_reads_a_video_file(frame_dir, tmp_path, capsys):
+    # the frames as an MPEG-4 video (lossy), tracked against the synthetic sequence's ground truth
+    folder, seq = frame_dir
+    video = tmp_path / "clip.mp4"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (128, 96))
+    for frame in seq.frames:
+        writer.write(cv2.cvtColor(frame.round().astype(np.uint8), cv2.COLOR_GRAY2BGR))
+    writer.release()
+    out = tmp_path / "tracks.npz"
+    assert infer.main(["track", "--frames", str(video), "--detect", "30", "--out", str(out)]) == 0
+    data = np.load(out)
+    assert list(data["frames"]) == [f"{video}#{t}" for t in range(4)]
+    truth, valid = seq.track(data["points"])
+    ok = valid[-1] & ~data["lost"][-1]
+    assert ok.mean() > 0.5
+    assert np.median(np.linalg.norm(data["tracks"][-1] - truth[-1], axis=1)[ok]) < 1.5
+    capsys.readouterr()
+    (tmp_path / "broken.mp4").write_bytes(b"not a video at all")
+    assert infer.main(["track", "--frames", str(tmp_path / "broken.mp4"), "--detect", "5", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "broken.mp4: not a readable video" in err and err.count("\n") == 1, err
+
+
+def test_a_broken_video_ends_in_one_stderr_line(tmp_path):
+    # FFmpeg's own log lines go to the process's stderr, which only a subprocess shows
+    (tmp_path / "broken.mp4").write_bytes(b"not a video at all")
+    argv = ["track", "--frames", str(tmp_path / "broken.mp4"), "--detect", "5", "--out", str(tmp_path / "t.npz")]
+    proc = subprocess.run([sys.executable, str(ROOT / "infer.py"), *argv], cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert not (tmp_path / "t.npz").exists()
 
 
 def test_track_errors(frame_dir, tmp_path, capsys):
