@@ -1,10 +1,12 @@
-"""Point files: every format :func:`core.frames.read_points` documents, and its refusals."""
+"""Frames from a video file, and point files: every format :func:`core.frames.read_points` documents, and its
+refusals."""
 
+import cv2
 import numpy as np
 import pytest
 
 from core.errors import InputError
-from core.frames import read_points
+from core.frames import read_frames, read_points
 
 POINTS = np.array([[10.5, 20.0], [3.0, 4.25], [100.0, 0.0]])
 
@@ -50,3 +52,23 @@ def test_bad_point_files_are_refused_naming_the_file(tmp_path, name, content, me
     assert str(path) in str(err.value)
     with pytest.raises(InputError, match="not found"):
         read_points(tmp_path / "missing.txt")
+
+
+def test_video_frames_decode_close_to_the_frames_written(tmp_path):
+    # smooth gray frames through a lossy MPEG-4 file: the decoded gray frames stay within a few gray levels
+    y, x = np.mgrid[0:64, 0:96]
+    written = [(128 + 80 * np.sin(x / 9.0 + t) * np.cos(y / 13.0)).astype(np.uint8) for t in range(5)]
+    video = tmp_path / "clip.MP4"  # the suffix in any case
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, (96, 64))
+    for frame in written:
+        writer.write(cv2.cvtColor(frame, cv2.COLOR_GRAY2BGR))
+    writer.release()
+    frames, names = read_frames(video)
+    assert [str(n) for n in names] == [f"{video}#{t}" for t in range(5)]
+    for frame, truth in zip(frames, written, strict=True):
+        assert frame.dtype == np.float32 and frame.shape == (64, 96)
+        assert np.abs(frame - truth).mean() < 4.0
+    assert len(read_frames(video, limit=2)[0]) == 2
+    (tmp_path / "broken.avi").write_bytes(b"RIFF not a video")
+    with pytest.raises(InputError, match="broken.avi: not a readable video"):
+        read_frames(tmp_path / "broken.avi")
