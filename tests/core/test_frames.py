@@ -50,7 +50,10 @@ def test_bad_point_files_are_refused_naming_the_file(tmp_path, name, content, me
     with pytest.raises(InputError, match=message) as err:
         read_points(path)
     assert str(path) in str(err.value)
-    with pytest.raises(InputError, match="not found"):
+
+
+def test_a_missing_point_file_is_named(tmp_path):
+    with pytest.raises(InputError, match=f"not found: {tmp_path / 'missing.txt'}"):
         read_points(tmp_path / "missing.txt")
 
 
