@@ -13,7 +13,9 @@ real photographs seen through chains of small homographies under growing defocus
 darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named ``homography_<condition>_<folder>_<file
 stem>``, 6 frames; the conditions ``stress_dark`` etc. put every frame under a photometric stress condition
 instead; ``--homography-cameras moving fixed`` adds the same sets seen by a fixed camera, as the Oxford
-sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs only those), real sequences with known
+sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs only those; ``--homography-geometry G``
+multiplies each step's rotation, scale change and tilt by G, a faster-turning and zooming camera, recorded in the
+JSON), real sequences with known
 homographies from their first frame, such as the Oxford sets or HPatches themselves (``--homography-folder DIR ...``,
 :mod:`data.flow.homography_folder`, named ``homography_folder_<parent>_<folder>``) and real videos without
 ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named ``roundtrip_<folder>``:
@@ -179,15 +181,18 @@ def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0,
 
 
 def homography_dataset(image: str | Path, condition: str, n_points: int, seed: int = 0,
-                       detector: Detector = DETECTOR, frames: int = 6, moving: bool = True) -> Dataset:
+                       detector: Detector = DETECTOR, frames: int = 6, moving: bool = True,
+                       geometry: float = 1.0) -> Dataset:
     """A real photograph (read as gray) through ``frames`` chained homographies under ``condition``
-    (:func:`data.flow.homography_sequence`; ``moving=False``: a fixed camera) or, for ``stress_<condition>``,
+    (:func:`data.flow.homography_sequence`; ``moving=False``: a fixed camera; ``geometry``: the multiplier of
+    each step's rotation, scale change and tilt) or, for ``stress_<condition>``,
     the undegraded views under that photometric stress condition (:func:`data.flow.stress_frames`, seeded: every
     frame at full strength), ground truth at the last frame."""
     stress = condition.removeprefix(STRESS_PREFIX) if condition.startswith(STRESS_PREFIX) else None
     photograph = read_frame_gray(image)
     try:
-        seq = homography_sequence(photograph, "none" if stress else condition, frames, seed, moving=moving)
+        seq = homography_sequence(photograph, "none" if stress else condition, frames, seed, moving=moving,
+                                  geometry=geometry)
     except InputError as err:  # the sequence's own checks do not know the file
         raise InputError(f"{image}: {err}") from err
     if stress:
@@ -594,6 +599,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--homography-cameras", nargs="+", choices=("moving", "fixed"), default=["moving"],
                         help="moving: the chained homographies; fixed: the same frames' degradation with a camera "
                         "that does not move (as in the Oxford sets), rows named homography_fixed_<condition>_...")
+    parser.add_argument("--homography-geometry", type=float, default=1.0, metavar="G",
+                        help="multiplier of each homography step's rotation (up to 2 degrees), scale change (3 %%) "
+                        "and tilt (default 1; 3: up to 6 degrees and 9 %% a frame, a fast-turning or zooming camera)")
     parser.add_argument("--homography-folder", nargs="+", action="extend", default=[], metavar="DIR",
                         help="real sequences with known homographies from their first frame (Oxford layout "
                         "img1.ppm + H1to2p ..., or HPatches 1.ppm + H_1_2 ...); repeat or list several")
@@ -660,7 +668,7 @@ def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[s
                 path = Path(image)
                 name = f"{group}_{path.parent.name}_{path.stem}"
                 datasets[name] = homography_dataset(path, condition, args.points, args.seed, detector,
-                                                    moving=camera == "moving")
+                                                    moving=camera == "moving", geometry=args.homography_geometry)
                 groups[name] = group
     for folder in args.homography_folder:
         path = Path(folder)
@@ -709,6 +717,7 @@ def main(argv: list[str] | None = None) -> int:
                           "threads": args.threads, "clock": clock_name(args.device),
                           "timing": f"best of {args.repeats} runs", "tracker": settings,
                           "detector": {"spacing": args.spacing, "quality": args.quality},
+                          **({"homography_geometry": args.homography_geometry} if args.homography else {}),
                           "retained_freed_memory": retained}))
     else:
         print("\n".join([table(result), *summary_lines(summary(result, groups))]))

@@ -4,8 +4,9 @@ et al. 2005: ``bikes`` blur, ``ubc`` JPEG, ``leuven`` light), so that trackers m
 synthetic generator's.
 
 Frame ``t`` of ``T`` is the image warped by ``H_t`` (``H_0`` the identity; each step a rotation of up to 2
-degrees, a scale change of up to 3 % and a perspective tilt about the image centre, plus a translation of up
-to ``step`` px), then degraded at strength ``s = t / (T - 1)``:
+degrees, a scale change of up to 3 % and a perspective tilt about the image centre, all three times
+``geometry`` (default 1; larger: a camera that turns, zooms and tilts faster, the way of a viewpoint sequence),
+plus a translation of up to ``step`` px), then degraded at strength ``s = t / (T - 1)``:
 
 - ``blur``: defocus, a Gaussian of std ``0.3 + 3.7 s`` px;
 - ``motion``: motion blur of a panning camera, a straight streak of ``1 + 11 s`` px in one direction (drawn from
@@ -61,15 +62,17 @@ class HomographySequence:
         return tracks, np.logical_and.accumulate(inside, axis=0)
 
 
-def _homographies(rng: np.random.Generator, frames: int, width: int, height: int, step: float) -> np.ndarray:
-    """``(T, 3, 3)`` chained random homographies about the image centre, the first the identity."""
+def _homographies(rng: np.random.Generator, frames: int, width: int, height: int, step: float,
+                  geometry: float = 1.0) -> np.ndarray:
+    """``(T, 3, 3)`` chained random homographies about the image centre, the first the identity; ``geometry``
+    multiplies each step's rotation, log scale and tilt (the draws themselves do not depend on it)."""
     centre = np.array([[1.0, 0.0, -width / 2], [0.0, 1.0, -height / 2], [0.0, 0.0, 1.0]])
     chain = [np.eye(3)]
     for _ in range(frames - 1):
-        angle = np.deg2rad(rng.uniform(-2.0, 2.0))
-        scale = np.exp(rng.uniform(-0.03, 0.03))
+        angle = np.deg2rad(geometry * rng.uniform(-2.0, 2.0))
+        scale = np.exp(geometry * rng.uniform(-0.03, 0.03))
         tx, ty = rng.uniform(-step, step, 2)
-        px, py = rng.uniform(-2e-5, 2e-5, 2)
+        px, py = geometry * rng.uniform(-2e-5, 2e-5, 2)
         c, s = scale * np.cos(angle), scale * np.sin(angle)
         move = np.array([[c, -s, tx], [s, c, ty], [px, py, 1.0]])
         chain.append(np.linalg.inv(centre) @ move @ centre @ chain[-1])
@@ -101,13 +104,14 @@ def degrade(
 
 def homography_sequence(
     image: np.ndarray, condition: str, frames: int = 6, seed: int = 0, step: float = 6.0,
-    motion_angle: float | None = None, moving: bool = True,
+    motion_angle: float | None = None, moving: bool = True, geometry: float = 1.0,
 ) -> HomographySequence:
     """``frames`` views of a gray ``image`` ``(H, W)`` (values in [0, 255]) under ``condition`` (one of
     :data:`HOMOGRAPHY_CONDITIONS`), moving up to about ``step`` px per frame plus the rotation and scale
     (``motion_angle``: the motion blur's direction in radians, x towards y; None: drawn from the seed;
     ``moving=False``: a fixed camera, every homography the identity, the frames degraded as in the moving
-    sequence of the same seed)."""
+    sequence of the same seed; ``geometry``: the multiplier of each step's rotation, scale change and tilt, the
+    module docstring)."""
     if condition not in HOMOGRAPHY_CONDITIONS:
         choices = ", ".join(HOMOGRAPHY_CONDITIONS)
         raise InputError(f"unknown homography condition {condition!r}; choose one of {choices}")
@@ -116,8 +120,11 @@ def homography_sequence(
         raise InputError(f"the image must be (H, W) gray and at least 32 px on each side, got shape {image.shape}")
     if frames < 2:
         raise InputError(f"a sequence needs at least 2 frames, got {frames}")
+    if not (geometry >= 0 and np.isfinite(geometry)):
+        raise InputError(f"the geometry multiplier must be a finite number >= 0, got {geometry}")
     height, width = image.shape
-    chain = _homographies(np.random.default_rng(seed), frames, width, height, step)  # the same for every condition
+    # the same chain for every condition
+    chain = _homographies(np.random.default_rng(seed), frames, width, height, step, geometry)
     if not moving:
         chain = np.broadcast_to(np.eye(3), chain.shape).copy()
     rng = np.random.default_rng([seed, HOMOGRAPHY_CONDITIONS.index(condition)])

@@ -110,3 +110,33 @@ def test_degrade_refuses_unknown_conditions_and_strengths():
     for strength in (-0.1, 1.2, float("nan")):
         with pytest.raises(InputError, match="strength"):
             degrade(_image(), "blur", strength, rng)
+
+
+def _step_rotation_and_scale(chain: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Per step ``(T - 1, 2)``: rotation (rad) and log scale of the step's affine part about the image centre."""
+    centre = np.array([[1.0, 0.0, -width / 2], [0.0, 1.0, -height / 2], [0.0, 0.0, 1.0]])
+    out = []
+    for before, after in zip(chain[:-1], chain[1:], strict=True):
+        move = centre @ after @ np.linalg.inv(before) @ np.linalg.inv(centre)
+        move = move / move[2, 2]
+        out.append([np.arctan2(move[1, 0], move[0, 0]), np.log(np.hypot(move[0, 0], move[1, 0]))])
+    return np.array(out)
+
+
+def test_geometry_multiplies_each_steps_rotation_and_scale():
+    """The same seed's steps turn and zoom ``geometry`` times as far, read back from the chained homographies;
+    ``geometry`` 0 without translation keeps the camera still."""
+    image = _image()
+    base = homography_sequence(image, "none", frames=5, seed=6).homographies
+    fast = homography_sequence(image, "none", frames=5, seed=6, geometry=3.0).homographies
+    still = homography_sequence(image, "none", frames=5, seed=6, geometry=0.0, step=0.0).homographies
+    a, b = _step_rotation_and_scale(base, 160, 120), _step_rotation_and_scale(fast, 160, 120)
+    assert np.abs(a[:, 0]).max() > np.deg2rad(0.5)  # the steps do turn
+    np.testing.assert_allclose(b, 3 * a, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(still, np.broadcast_to(np.eye(3), still.shape), atol=1e-12)
+
+
+@pytest.mark.parametrize("geometry", [-1.0, float("nan"), float("inf")])
+def test_bad_geometry_refused(geometry):
+    with pytest.raises(InputError, match="geometry multiplier"):
+        homography_sequence(_image(), "none", frames=3, geometry=geometry)
