@@ -9,14 +9,17 @@ from models.tracking.point_tracker import (
     extract_patches,
     image_pyramid,
 )
+from models.tracking.turn import CameraTurn, camera_turn
 
 __all__ = [
     "METHODS",
     "BlockGridRatio",
+    "CameraTurn",
     "GoodFeaturesToTrack",
     "PointTracker",
     "TrackerState",
     "block_grid_ratio",
+    "camera_turn",
     "extract_patches",
     "good_features_to_track",
     "image_pyramid",

@@ -1131,3 +1131,48 @@ def test_tracks_on_cuda_match_the_cpu(condition):
     assert both.sum() >= 0.5 * len(points)
     gap = (cpu_tracks[-1, both] - gpu_tracks[-1, both]).norm(dim=-1)
     assert gap.median() <= 0.01 and torch.quantile(gap, 0.95) <= 0.05
+
+
+def test_memory_rate_rises_with_the_frames_turn():
+    """The learning rate of a frame whose tracked points rotate by an angle about their centre (a closed-form
+    turn: the angle in rad, the fit explaining every step): eta below ``turn_limit``, eta + ``turn_gain`` times the
+    excess above it, at most ``eta_max``; eta with fewer than 10 tracked points or ``turn_limit`` None."""
+    grid = torch.arange(0.0, 100.0, 20.0, dtype=torch.float64)
+    start = torch.stack(torch.meshgrid(grid, grid, indexing="xy"), -1).reshape(-1, 2) + 50
+    centre = start.mean(0)
+
+    def turned(degrees: float) -> torch.Tensor:
+        c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+        return (start - centre) @ torch.tensor([[c, s], [-s, c]], dtype=torch.float64) + centre + 3.0
+
+    tracker = PointTracker("ccot")
+    tracked = torch.ones(len(start), dtype=torch.bool)
+    for degrees, expected in ((2.0, 0.1), (4.0, 0.1 + 8 * (math.radians(4.0) - 0.05)), (6.0, 0.5)):
+        assert tracker._memory_rate(start, turned(degrees), tracked).item() == pytest.approx(expected, rel=1e-9)
+    few = torch.zeros_like(tracked)
+    few[:9] = True
+    assert tracker._memory_rate(start, turned(6.0), few).item() == pytest.approx(0.1)
+    assert PointTracker("ccot", turn_limit=None)._memory_rate(start, turned(6.0), tracked).item() == pytest.approx(0.1)
+    for name, value in (("turn_limit", -0.1), ("turn_gain", -1.0), ("eta_max", 0.0), ("eta_max", 1.5)):
+        with pytest.raises(InputError, match=name):
+            PointTracker("ccot", **{name: value})
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_fast_turning_camera_is_tracked_with_the_faster_memory(seed):
+    """A texture seen through homographies that turn by up to 10 degrees and zoom by up to 15 % a frame
+    (``geometry=5``): with the memory's rate raised by the frames' turn every point stays within 3 px of the
+    truth at the last frame (measured 1.000 at both seeds); with the fixed rate (``turn_limit=None``, the tracker
+    before) a quarter to a third of them drift away (0.76 and 0.65)."""
+    image = textured(192, 256, seed)
+    seq = homography_sequence(image, "none", frames=6, seed=21, geometry=5.0)
+    xs, ys = np.arange(40.0, 217.0, 12.0), np.arange(40.0, 153.0, 12.0)
+    points = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
+    truth, valid = seq.track(points)
+    frames = [torch.from_numpy(f.astype(np.float64)) for f in seq.frames]
+    within = {}
+    for name, tracker in (("turn", PointTracker("ccot")), ("fixed", PointTracker("ccot", turn_limit=None))):
+        tracks, lost, _ = tracker.double().track(frames, torch.from_numpy(points))
+        close = (np.linalg.norm(tracks[-1].numpy() - truth[-1], axis=-1) < 3) & ~lost[-1].numpy()
+        within[name] = close[valid[-1]].mean()
+    assert within["turn"] >= 0.97 and within["fixed"] <= 0.85, within

@@ -1,0 +1,56 @@
+"""How far a frame's tracked points turn: the rotation and scale change of the least-squares similarity that takes
+their positions in one frame to the next, weighed by the share of their motion it explains.
+
+A camera that rolls or zooms turns every point's patch alike, so the patches' appearance drifts away from what a
+filter's sample memory holds; points on a non-rigid scene, or seen with parallax, move differently from one
+another, and a similarity fitted to them explains little of their motion about the mean step. The product of the
+two tells the first case from the second (:class:`~models.tracking.PointTracker` learns faster in the first).
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor, nn
+
+from core.errors import InputError
+
+_TINY = 1e-12
+
+
+def camera_turn(start: Tensor, moved: Tensor, weight: Tensor) -> Tensor:
+    """The turn of points moving from ``start`` to ``moved`` ``(..., P, 2)`` (x, y px), each weighted by
+    ``weight`` ``(..., P)`` (0 leaves a point out): ``share * sqrt(angle^2 + log_scale^2)`` ``(...)``.
+
+    ``angle`` (rad) and ``log_scale`` are those of the weighted least-squares similarity ``x' = s R(angle) x + t``
+    (closed form about the weighted centroids: ``a = sum w p.q / sum w |p|^2``, ``b = sum w (p x q) / sum w |p|^2``
+    with ``s R = [[a, -b], [b, a]]``), and ``share`` (0-1) is the part of the steps' spread about their mean step
+    (``sum w |q - p|^2``) that the fit removes. 0 where the points do not spread or do not move about their mean
+    step (a pure translation, or fewer than two weighted points)."""
+    if start.shape != moved.shape or start.dim() < 2 or start.shape[-1] != 2:
+        raise InputError(f"start and moved must be (..., P, 2) of one shape, got {tuple(start.shape)} and "
+                         f"{tuple(moved.shape)}")
+    if weight.shape != start.shape[:-1]:
+        raise InputError(f"weight must be (..., P) = {tuple(start.shape[:-1])}, got {tuple(weight.shape)}")
+    w = weight[..., None]
+    mass = w.sum(-2, keepdim=True).clamp_min(_TINY)
+    p = start - (w * start).sum(-2, keepdim=True) / mass
+    q = moved - (w * moved).sum(-2, keepdim=True) / mass
+    spread = (w * p.square()).sum((-2, -1))
+    safe = spread.clamp_min(_TINY)
+    a = (w * p * q).sum((-2, -1)) / safe
+    b = (weight * (p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0])).sum(-1) / safe
+    steps = (w * (q - p).square()).sum((-2, -1))
+    # what the fit leaves: sum w |q|^2 - (a^2 + b^2) sum w |p|^2 (the least-squares identity)
+    left = ((w * q.square()).sum((-2, -1)) - (a.square() + b.square()) * spread).clamp_min(0)
+    share = ((steps - left) / steps.clamp_min(_TINY)).clamp(0, 1)
+    log_scale = 0.5 * torch.log((a.square() + b.square()).clamp_min(_TINY))  # hypot does not export
+    turn = share * torch.sqrt(torch.atan2(b, a).square() + log_scale.square())
+    moving = (spread > _TINY) & (steps > _TINY)
+    return torch.where(moving, turn, torch.zeros_like(turn))
+
+
+class CameraTurn(nn.Module):
+    """:func:`camera_turn` as a module."""
+
+    def forward(self, start: Tensor, moved: Tensor, weight: Tensor) -> Tensor:
+        return camera_turn(start, moved, weight)
