@@ -137,7 +137,7 @@ _LOW_SNR = 20.0  # default low_snr: median patch-to-noise variance ratio of a fi
 _LOW_SNR_PSR = 16.0  # default low_snr_psr: geometric-mean PSR of a first step below which the noise is measured again
 _TURN_LIMIT = 0.05  # default turn_limit: about 3 degrees or 5 % a frame where the turn explains the motion
 _TURN_GAIN = 8.0  # default turn_gain: eta rises by 0.08 per 0.01 of turn beyond turn_limit
-_ETA_MAX = 0.5  # default eta_max
+_ETA_MAX = 0.5  # default eta_max: the fastest the memory learns where a camera turns (won the G = 5 rows)
 _RESIDUAL_SNR_MARGIN = 4.0  # a first step's residual SNR sends a sequence to the twin below low_snr over this
 
 
@@ -724,7 +724,7 @@ class PointTracker(nn.Module):
         """The learning rate ``(1,)`` of this frame's samples: ``eta``, raised by ``turn_gain`` per unit of the
         frame's turn beyond ``turn_limit`` (:func:`~models.tracking.turn.camera_turn` of the steps ``start`` ->
         ``moved`` ``(P, 2)`` of the points ``tracked`` ``(P,)`` into and out of the previous frame, where there are
-        at least 10), at most ``eta_max``."""
+        at least 10), at most ``eta_max`` and never below ``eta`` (``ccot_ff``'s 1 stays 1)."""
         rate = torch.full((1,), self.eta, dtype=start.dtype, device=start.device)
         if self.turn_limit is None:
             return rate
