@@ -36,6 +36,11 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   noise above the frame's, the runtime tracks the sequence again from the first frame on the low-SNR graphs, that
   step with that noise as ``noise_floor`` (:meth:`PointTracker._low_snr_retry`).
 
+- ``turn.onnx``: ``start``, ``moved`` (P, 2) and ``tracked`` (P,) bool -> ``turn`` (1,) and ``similarity`` (2, 3):
+  the turn of the tracked points' steps and the similarity fitted to them (:mod:`models.tracking.turn`). Beyond
+  ``thresholds.turn_match`` (null: off) the runtime tracks the step again from the previous frame warped by that
+  similarity (``cv2.warpAffine``), as :meth:`PointTracker._turn_matched_step` does.
+
 ``--check`` tracks the synthetic sequence with the bundle and with PyTorch and prints the largest position
 difference and the lost flags that differ.
 """
@@ -60,6 +65,7 @@ from models.tracking.blur import RadialPowerProfile, gaussian_blur, relative_blu
 from models.tracking.compression import BlockGridRatio
 from models.tracking.motion_blur import MotionBlurStreak
 from models.tracking.point_tracker import METHODS
+from models.tracking.turn import camera_turn, fit_similarity
 from runtime.bundle import write_manifest
 from runtime.tracking import OnnxPointTracker
 
@@ -142,6 +148,27 @@ class RelativeBlurGraph(nn.Module):
 
     def forward(self, reference: Tensor, profile: Tensor) -> Tensor:
         return relative_blur(reference, profile)
+
+
+class TurnGraph(nn.Module):
+    """:func:`~models.tracking.turn.camera_turn` and :func:`~models.tracking.turn.fit_similarity` of the tracked
+    points' steps: start, moved (P, 2), tracked (P,) bool -> turn (1,), similarity (2, 3)."""
+
+    def forward(self, start: Tensor, moved: Tensor, tracked: Tensor) -> tuple[Tensor, Tensor]:
+        weight = tracked.to(start.dtype)
+        return camera_turn(start, moved, weight).reshape(1), fit_similarity(start, moved, weight)
+
+
+def export_turn_graph(path: str | Path) -> None:
+    """Export ``turn.onnx`` (P dynamic) to ``path``."""
+    gen = torch.Generator().manual_seed(0)
+    start = torch.rand(20, 2, generator=gen) * 100
+    moved = start @ torch.tensor([[0.99, 0.1], [-0.1, 0.99]]) + 3
+    tracked = torch.rand(20, generator=gen) > 0.2
+    p = torch.export.Dim("points", min=2, max=MAX_POINTS)
+    with torch.no_grad():
+        export_onnx(TurnGraph(), (start, moved, tracked), path, ["start", "moved", "tracked"], ["turn", "similarity"],
+                    dynamic_shapes=({0: p}, {0: p}, {0: p}))
 
 
 def example_inputs(tracker: PointTracker, height: int, width: int, points: int, seed: int = 0):
@@ -238,6 +265,7 @@ GRAPH_JOBS = {
     "init_low_snr.onnx": ("init", True),
     "snr.onnx": ("snr", False),
     "first_step_noise.onnx": ("noise", False),
+    "turn.onnx": ("turn", False),
 }
 
 
@@ -255,6 +283,8 @@ def export_graph(name: str, folder: Path, method: str, height: int, width: int) 
         export_blur_graphs(folder, tracker, height, width)
     elif kind == "noise":
         export_first_step_noise_graph(folder / name, tracker, height, width)
+    elif kind == "turn":
+        export_turn_graph(folder / name)
     else:
         export_snr_graph(folder / name, tracker, height, width)
 
@@ -271,7 +301,7 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                   workers: int | None = None) -> Path:
     """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``profile.onnx``,
     ``relative_blur.onnx``, ``streak.onnx``, ``snr.onnx``, ``init_low_snr.onnx``, ``step_low_snr.onnx``,
-    ``first_step_noise.onnx``, ``bundle.json``), its graphs exported by ``workers`` processes
+    ``first_step_noise.onnx``, ``turn.onnx``, ``bundle.json``), its graphs exported by ``workers`` processes
     (:func:`export_graphs`)."""
     if method not in METHODS:
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
@@ -293,7 +323,8 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                         "streak_score": tracker.streak_score, "streak_match_px2": tracker.streak_match,
                         "block_limit": tracker.block_limit, "block_psr_threshold": tracker.block_psr_threshold,
                         "compression_reg": tracker.compression_reg, "low_snr": tracker.low_snr,
-                        "low_snr_psr": tracker.low_snr_psr, "low_snr_residual": tracker.low_snr_residual},
+                        "low_snr_psr": tracker.low_snr_psr, "low_snr_residual": tracker.low_snr_residual,
+                        "turn_match": tracker.turn_match},
             settings={"method": method, "patch_sizes": list(tracker.sizes), "bands": list(tracker.bands),
                       "search_sigmas": list(tracker.search_sigmas), "window": tracker.window,
                       "low_snr_patch_sizes": list(tracker.low_snr_tracker.sizes),

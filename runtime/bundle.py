@@ -33,15 +33,16 @@ VERSION = 1
 TASK_GRAPHS = {
     "triangulation": ("dogleg_start", "dogleg_start_shared", "dogleg_step"),
     "tracking": ("init", "step", "profile", "relative_blur", "streak", "snr", "init_low_snr", "step_low_snr",
-                 "first_step_noise"),
+                 "first_step_noise", "turn"),
     "horizon": ("finder", "level", "segmenter", "matcher"),
     "vos": ("frame", "features", "init", "insert", "update"),
     "davos": ("features", "frame", "encode", "insert", "fit_init", "fit_update"),
 }
 #: The revision of each task's graph interface, raised when the graphs' inputs, outputs or contract change (tracking
 #: 2: the ``snr`` graph leaves out the points outside the frame itself, so the runtime no longer filters them; 3: the
-#: ``first_step_noise`` graph and the ``noise_floor`` input of ``step_low_snr``).
-TASK_REVISIONS = {"triangulation": 1, "tracking": 3, "horizon": 1, "vos": 1, "davos": 1}
+#: ``first_step_noise`` graph and the ``noise_floor`` input of ``step_low_snr``; 4: the ``turn`` graph and the
+#: ``turn_match`` threshold).
+TASK_REVISIONS = {"triangulation": 1, "tracking": 4, "horizon": 1, "vos": 1, "davos": 1}
 #: The command that writes each task's bundle (named in error messages).
 EXPORT_COMMANDS = {"triangulation": "export.triangulation", "tracking": "export.tracking_onnx",
                    "horizon": "export.horizon_onnx", "vos": "export.vos_onnx", "davos": "export.davos_onnx"}

@@ -16,7 +16,9 @@ points (those inside it) with a median signal-to-noise ratio below the bundle's 
 runs on the ``init_low_snr`` and ``step_low_snr`` graphs (``PointTracker.init``'s low-SNR twin); where the first
 step's PSRs are low and the ``first_step_noise`` graph reads its residuals as noise that the frame's estimate
 under-read, that step runs again on them from the first frame, with the noise it read as the frame's least noise
-(``PointTracker._low_snr_retry``). The tracks
+(``PointTracker._low_snr_retry``). Where the ``turn`` graph reads the tracked points' steps as a camera turn
+beyond the bundle's ``turn_match``, the step runs again from the previous frame warped by the similarity fitted to
+them (``cv2.warpAffine``; ``PointTracker._turn_matched_step``). The tracks
 file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
 ``points``, ``method`` and ``frames``.
 """
@@ -49,6 +51,8 @@ from core.streak import (
     streaks_matched,
 )
 from runtime.bundle import Bundle, add_runtime_arguments
+
+_FLOOR_POINTS = 10  # tracked points the turn of a step needs (PointTracker's turn matching)
 
 
 @dataclass
@@ -95,6 +99,8 @@ class OnnxPointTracker:
         self.streak_match = thresholds.get("streak_match_px2")
         self.streak_graph = self.bundle.graph("streak") if self.streak_score is not None else None
         self.profile_graph, self.relative_graph = self.bundle.graph("profile"), self.bundle.graph("relative_blur")
+        self.turn_match = thresholds.get("turn_match")
+        self.turn_graph = self.bundle.graph("turn") if self.turn_match is not None else None
 
     def _frame(self, frame: np.ndarray, index: int) -> np.ndarray:
         frame = np.asarray(frame, np.float32)
@@ -131,7 +137,7 @@ class OnnxPointTracker:
                     self._use_graphs(True, floor)
                     new = self._step(image, previous, self._start(previous, points))
                     self._use_graphs(True)  # the floor holds for that step only
-                state = new
+                state = self._turn_matched(image, previous, state, new)
             previous = image
             tracks.append(state.positions)
             lost.append(state.flags)
@@ -176,6 +182,24 @@ class OnnxPointTracker:
             last, template = profile, state.template
         positions, flags, scores, means, *filters = outputs
         return _Tracks(positions, flags, scores, means, filters, reference, last, streak, template)
+
+    def _turn_matched(self, image: np.ndarray, previous: np.ndarray, state: _Tracks, new: _Tracks) -> _Tracks:
+        """``new``, the step from ``state`` into ``image`` after ``previous``, or, where the points tracked into
+        and out of ``previous`` (at least 10) turn by more than the bundle's ``turn_match`` (the ``turn`` graph),
+        the step again from ``previous`` warped by the similarity fitted to their steps, the points moved with it
+        and their filters trained afresh there (``PointTracker._turn_matched_step``)."""
+        tracked = ~(state.flags | new.flags)
+        if self.turn_graph is None or tracked.sum() < _FLOOR_POINTS:
+            return new
+        turn, similarity = self.turn_graph(state.positions, new.positions, tracked)
+        if not turn[0] > self.turn_match:
+            return new
+        height, width = previous.shape[2:]
+        turned = cv2.warpAffine(previous[0, 0], similarity, (width, height), flags=cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_REFLECT_101)[None, None]
+        moved = (state.positions @ similarity[:, :2].T + similarity[:, 2]).astype(np.float32)
+        flags, filters = self._retrained(turned, moved, state.flags, state.filters)
+        return self._step(image, turned, _Tracks(moved, flags, state.scores, state.means, filters))
 
     def _retry_floor(self, image: np.ndarray, start: _Tracks, new: _Tracks) -> np.ndarray | None:
         """The noise floor (1,) with which the first step into ``image`` is tracked again on the low-SNR graphs

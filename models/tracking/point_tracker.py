@@ -26,8 +26,9 @@ point's level-0 PSR and the tests on level 0 see the blocks rather than the scen
 Then the filters of the points still tracked learn, with weight ``eta``, a sample at the new position: the search
 sample shifted in the Fourier domain; in a frame where the tracked points turn together (a camera that rolls or
 zooms, :mod:`~models.tracking.turn`) the weight rises with the turn, since the memory's older samples no longer
-look like the patches. Before all this, a frame whose blur differs from that of the frame the
-filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
+look like the patches, and where they turn further the step is tracked again from the previous frame turned onto
+this one (:meth:`PointTracker._turn_matched_step`). Before all this, a frame whose blur differs from that of the
+frame the filters were last trained afresh on by more than ``blur_match`` px^2 (measured from the two power spectra) is
 matched to it: the sharper of the two views is blurred to the other's level (:meth:`_blur_matched_step`), since a
 sharp template matched against a blurred view is biased at every asymmetric structure. Straight motion blur
 (a streak, found in each frame's power cepstrum, :mod:`~models.tracking.motion_blur`) is matched exactly instead:
@@ -72,6 +73,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from kornia.filters import filter2d
+from kornia.geometry.transform import warp_affine
 from torch import Tensor, nn
 
 from core.errors import InputError
@@ -106,7 +108,7 @@ from models.tracking.compression import (
 )
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
-from models.tracking.turn import camera_turn
+from models.tracking.turn import camera_turn, fit_similarity
 
 METHODS = ("ccot", "ccot_ff", "mosse")
 DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
@@ -137,6 +139,7 @@ _LOW_SNR = 20.0  # default low_snr: median patch-to-noise variance ratio of a fi
 _LOW_SNR_PSR = 16.0  # default low_snr_psr: geometric-mean PSR of a first step below which the noise is measured again
 _TURN_LIMIT = 0.05  # default turn_limit: about 3 degrees or 5 % a frame where the turn explains the motion
 _TURN_GAIN = 8.0  # default turn_gain: eta rises by 0.08 per 0.01 of turn beyond turn_limit
+_TURN_MATCH = 0.08  # default turn_match: the turn beyond which a step is tracked again from the turned frame
 _ETA_MAX = 0.5  # default eta_max: the fastest the memory learns where a camera turns (won the G = 5 rows)
 _RESIDUAL_SNR_MARGIN = 4.0  # a first step's residual SNR sends a sequence to the twin below low_snr over this
 
@@ -427,6 +430,10 @@ class PointTracker(nn.Module):
         frame), lies above the turns of the shared real videos (the 30 DAVIS videos: at most 0.013 frame to frame,
         and at every fourth frame 0.059 in one step of bmx-bumps, the next 0.039: the steps of a non-rigid scene
         are not a similarity) and of the synthetic sequences (at most 0.041). None: ``eta`` always.
+        turn_match: the turn beyond which a step is tracked again from the previous frame turned onto the new one
+        (:meth:`_turn_matched_step`: warped by the similarity fitted to the points' steps, the filters trained
+        afresh there); None: never. Beyond about 8 degrees or 12 % a frame a faster memory no longer keeps the
+        points (docs/results.md).
     """
 
     def __init__(
@@ -461,6 +468,7 @@ class PointTracker(nn.Module):
         turn_limit: float | None = _TURN_LIMIT,
         turn_gain: float = _TURN_GAIN,
         eta_max: float = _ETA_MAX,
+        turn_match: float | None = _TURN_MATCH,
     ) -> None:
         settings = {name: value for name, value in locals().items() if name not in ("self", "__class__")}
         super().__init__()
@@ -504,6 +512,9 @@ class PointTracker(nn.Module):
         if not 0 < eta_max <= 1:
             raise InputError(f"eta_max must lie in (0, 1], got {eta_max}")
         self.turn_limit, self.turn_gain, self.eta_max = turn_limit, turn_gain, max(eta_max, self.eta)
+        if turn_match is not None and not turn_match > 0:
+            raise InputError(f"turn_match must be a positive turn or None, got {turn_match}")
+        self.turn_match = turn_match
         sigma = DEFAULT_SIGMA[method] if sigma is None else sigma
         if not sigma > 0:
             raise InputError(f"label sigma must be a positive std in px, got {sigma}")
@@ -981,8 +992,13 @@ class PointTracker(nn.Module):
         noise that the frame's estimate under-read is tracked again by the low-SNR twin (:meth:`_low_snr_retry`)."""
         if state.low_snr:
             return replace(self.low_snr_tracker.step(frame, replace(state, low_snr=False), compile), low_snr=True)
-        forward = self._compiled() if compile else self
         frame = self._frame(frame)
+        return self._turn_matched_step(frame, state, self._matched_step(frame, state, compile), compile)
+
+    def _matched_step(self, frame: Tensor, state: TrackerState, compile: bool) -> TrackerState:
+        """:meth:`step` into a ``(1, 1, H, W)`` frame before the turn matching: with blur or streak matching and the
+        low-SNR retry."""
+        forward = self._compiled() if compile else self
         if self.blur_match is None:
             return self._low_snr_retry(frame, state, self._advance(forward, frame, state), compile)
         streak = self._streak(frame, state.streak)
@@ -992,6 +1008,30 @@ class PointTracker(nn.Module):
         else:
             new = self._blur_matched_step(forward, frame, state)
         return self._low_snr_retry(frame, state, new, compile)
+
+    def _turn_matched_step(self, frame: Tensor, state: TrackerState, new: TrackerState,
+                           compile: bool) -> TrackerState:
+        """``new``, the step from ``state`` into ``frame``, or, where its tracked points turn by more than
+        ``turn_match`` (:func:`~models.tracking.turn.camera_turn`; at least 10 points tracked into and out of the
+        previous frame), the step tracked again from the previous frame turned onto this one: warped by the
+        similarity fitted to the points' steps (:func:`~models.tracking.turn.fit_similarity`), the points moved
+        with it and their filters trained afresh there. A filter only finds a patch that looks like its samples,
+        and a camera that rolls or zooms by more than a few degrees or percent a frame turns every patch away
+        from them; the turned previous frame looks like this frame up to the points' own motion. The sample
+        memory restarts, as in blur matching."""
+        if self.turn_match is None:
+            return new
+        tracked = ~(state.lost | new.lost)
+        weight = tracked.to(state.positions.dtype)
+        if int(tracked.sum()) < _FLOOR_POINTS or not float(camera_turn(state.positions, new.positions, weight)) > \
+                self.turn_match:
+            return new
+        similarity = fit_similarity(state.positions, new.positions, weight)
+        turned = warp_affine(state.frame, similarity[None], tuple(state.frame.shape[-2:]), padding_mode="reflection",
+                             align_corners=True)
+        moved = state.positions @ similarity[:, :2].T + similarity[:, 2]
+        start = replace(state, frame=turned, positions=moved, reference=None, profile=None, streak=None, template=())
+        return self._matched_step(frame, self._retrained(turned, start), compile)
 
     def _low_snr_retry(self, frame: Tensor, state: TrackerState, new: TrackerState, compile: bool) -> TrackerState:
         """``new``, the first step from ``state`` (no point has a PSR history yet) into ``frame`` ``(1, 1, H, W)``, or

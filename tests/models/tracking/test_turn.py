@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from core.errors import InputError
-from models.tracking.turn import CameraTurn, camera_turn
+from models.tracking.turn import CameraTurn, camera_turn, fit_similarity
 
 
 def _similar(points: np.ndarray, angle: float, scale: float, shift: tuple[float, float]) -> np.ndarray:
@@ -71,3 +71,20 @@ def test_bad_shapes_refused():
         camera_turn(torch.zeros(5, 2), torch.zeros(5, 3), torch.ones(5))
     with pytest.raises(InputError, match="weight"):
         camera_turn(torch.zeros(5, 2), torch.zeros(5, 2), torch.ones(4))
+
+
+def test_fit_similarity_maps_the_points_as_cv2_estimates():
+    """An exact similarity is recovered, and on noisy steps the fit equals OpenCV's least-squares estimate
+    (``cv2.estimateAffinePartial2D`` with every point an inlier, refined by Levenberg-Marquardt)."""
+    import cv2
+
+    rng = np.random.default_rng(3)
+    start = rng.uniform(0, 200, (50, 2))
+    exact = _similar(start, 0.2, 1.1, (4.0, -6.0))
+    matrix = fit_similarity(torch.from_numpy(start), torch.from_numpy(exact), torch.ones(50, dtype=torch.float64))
+    np.testing.assert_allclose((start @ matrix[:, :2].numpy().T) + matrix[:, 2].numpy(), exact, atol=1e-9)
+    noisy = exact + rng.normal(0, 0.5, exact.shape)
+    fitted = fit_similarity(torch.from_numpy(start), torch.from_numpy(noisy), torch.ones(50, dtype=torch.float64))
+    reference, inliers = cv2.estimateAffinePartial2D(start, noisy, method=cv2.LMEDS, refineIters=100)
+    assert inliers.all()
+    np.testing.assert_allclose(fitted.numpy(), reference, atol=1e-5)  # OpenCV stops its refinement near 1e-6
