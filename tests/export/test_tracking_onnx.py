@@ -1,5 +1,5 @@
-"""The tracking bundle: its step, init, snr and streak graphs match PyTorch in onnxruntime at other frame sizes and
-point counts than exported, its manifest, bad export arguments."""
+"""The tracking bundle: its step, init, snr, streak and turn graphs match PyTorch in onnxruntime at other frame
+sizes and point counts than exported, its manifest, bad export arguments."""
 
 import math
 from collections import Counter
@@ -15,6 +15,7 @@ from core.streak import streak_blur
 from export.tracking_onnx import GRAPH_JOBS, example_inputs, export_bundle, export_graphs, parity
 from models.tracking import PointTracker
 from models.tracking.motion_blur import motion_blur_streak
+from models.tracking.turn import camera_turn, fit_similarity
 from runtime.bundle import Bundle
 
 pytestmark = pytest.mark.slow  # ONNX export
@@ -52,6 +53,24 @@ def test_snr_graph_matches_pytorch(tracking_bundle) -> None:
             np.testing.assert_allclose(snr(frame.numpy(), chosen.numpy()), want.numpy(), rtol=1e-4)
         assert want.item() == np.inf
     assert Bundle(tracking_bundle, "tracking").section("thresholds")["low_snr"] == tracker.low_snr
+
+
+def test_turn_graph_matches_pytorch(tracking_bundle) -> None:
+    """At point counts other than exported, with untracked points among them: the turn and the fitted similarity
+    of ``models.tracking.turn``; the manifest's ``turn_match`` is the tracker's."""
+    turn_graph = Bundle(tracking_bundle, "tracking").graph("turn")
+    gen = torch.Generator().manual_seed(5)
+    for points, degrees in ((12, 3.0), (300, 9.0)):
+        start = torch.rand(points, 2, generator=gen) * 200
+        c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+        moved = start @ torch.tensor([[c, s], [-s, c]]) * 1.05 + torch.randn(points, 2, generator=gen) + 4
+        tracked = torch.rand(points, generator=gen) > 0.3
+        turn, similarity = turn_graph(start.numpy(), moved.numpy(), tracked.numpy())
+        weight = tracked.float()
+        np.testing.assert_allclose(turn, camera_turn(start, moved, weight).reshape(1).numpy(), rtol=1e-4)
+        np.testing.assert_allclose(similarity, fit_similarity(start, moved, weight).numpy(), rtol=1e-4, atol=1e-4)
+    thresholds = Bundle(tracking_bundle, "tracking").section("thresholds")
+    assert thresholds["turn_match"] == PointTracker("ccot").turn_match
 
 
 def test_first_step_noise_graph_and_floored_step_match_pytorch(tracking_bundle) -> None:
@@ -143,5 +162,5 @@ def test_the_bundle_holds_every_graph_job(tracking_bundle) -> None:
     """The parallel export (the fixture's default: one worker per core) wrote each job's graphs."""
     names = {name.strip() for job in GRAPH_JOBS for name in job.split(",")}
     assert names == {"init.onnx", "step.onnx", "profile.onnx", "relative_blur.onnx", "streak.onnx", "snr.onnx",
-                     "init_low_snr.onnx", "step_low_snr.onnx", "first_step_noise.onnx"}
+                     "init_low_snr.onnx", "step_low_snr.onnx", "first_step_noise.onnx", "turn.onnx"}
     assert names <= {path.name for path in tracking_bundle.iterdir()}
