@@ -646,7 +646,10 @@ def test_default_label_tracks_a_rotating_scaling_patch_more_precisely_than_one_p
     truth = points @ affine[:, :2].T + affine[:, 2]
     frames = [torch.from_numpy(image), torch.from_numpy(warped)]
     errors = {}
-    for name, tracker in (("default", PointTracker("ccot")), ("1 px", PointTracker("ccot", sigma=1.0))):
+    # the whole texture turns alike (a turn of 0.08): turn matching is off, the patches must deform as a scene's do
+    trackers = (("default", PointTracker("ccot", turn_match=None)),
+                ("1 px", PointTracker("ccot", sigma=1.0, turn_match=None)))
+    for name, tracker in trackers:
         tracks, lost, _ = tracker.double().track(frames, points)
         assert not lost[1].any()
         errors[name] = (tracks[1] - truth).norm(dim=-1).mean().item()
