@@ -135,9 +135,11 @@ class OnnxPointTracker:
                 floor = self._retry_floor(image, start, new) if t == 1 else None
                 if floor is not None:  # the first step again, on the low-SNR graphs (PointTracker._low_snr_retry)
                     self._use_graphs(True, floor)
-                    new = self._step(image, previous, self._start(previous, points))
-                    self._use_graphs(True)  # the floor holds for that step only
+                    state = self._start(previous, points)
+                    new = self._step(image, previous, state)
                 state = self._turn_matched(image, previous, state, new)
+                if floor is not None:
+                    self._use_graphs(True)  # the floor holds for that step only, turn matching included
             previous = image
             tracks.append(state.positions)
             lost.append(state.flags)

@@ -989,25 +989,26 @@ class PointTracker(nn.Module):
     def step(self, frame: Tensor, state: TrackerState, compile: bool = False) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``; ``compile``: run :meth:`forward` through
         ``torch.compile`` (see :meth:`track`). A first step whose matches are weak and whose residuals show
-        noise that the frame's estimate under-read is tracked again by the low-SNR twin (:meth:`_low_snr_retry`)."""
+        noise that the frame's estimate under-read is tracked again by the low-SNR twin (:meth:`_low_snr_retry`), turn
+        matching included; any other step is turn matched here (:meth:`_turn_matched_step`)."""
         if state.low_snr:
             return replace(self.low_snr_tracker.step(frame, replace(state, low_snr=False), compile), low_snr=True)
         frame = self._frame(frame)
-        return self._turn_matched_step(frame, state, self._matched_step(frame, state, compile), compile)
+        new = self._matched_step(frame, state, compile)
+        retried = self._low_snr_retry(frame, state, new, compile)
+        return retried if retried is not None else self._turn_matched_step(frame, state, new, compile)
 
     def _matched_step(self, frame: Tensor, state: TrackerState, compile: bool) -> TrackerState:
-        """:meth:`step` into a ``(1, 1, H, W)`` frame before the turn matching: with blur or streak matching and the
-        low-SNR retry."""
+        """:meth:`step` into a ``(1, 1, H, W)`` frame before the low-SNR retry and the turn matching: with blur or
+        streak matching."""
         forward = self._compiled() if compile else self
         if self.blur_match is None:
-            return self._low_snr_retry(frame, state, self._advance(forward, frame, state), compile)
+            return self._advance(forward, frame, state)
         streak = self._streak(frame, state.streak)
         if streak is not None or state.template:
             previous = None if state.template else state.frame  # a first streak: was it there already?
-            new = self._streak_matched_step(forward, frame, state, streak, previous)
-        else:
-            new = self._blur_matched_step(forward, frame, state)
-        return self._low_snr_retry(frame, state, new, compile)
+            return self._streak_matched_step(forward, frame, state, streak, previous)
+        return self._blur_matched_step(forward, frame, state)
 
     def _turn_matched_step(self, frame: Tensor, state: TrackerState, new: TrackerState,
                            compile: bool) -> TrackerState:
@@ -1033,10 +1034,11 @@ class PointTracker(nn.Module):
         start = replace(state, frame=turned, positions=moved, reference=None, profile=None, streak=None, template=())
         return self._matched_step(frame, self._retrained(turned, start), compile)
 
-    def _low_snr_retry(self, frame: Tensor, state: TrackerState, new: TrackerState, compile: bool) -> TrackerState:
-        """``new``, the first step from ``state`` (no point has a PSR history yet) into ``frame`` ``(1, 1, H, W)``, or
-        that step tracked again by the low-SNR twin where its matches are weak and its residuals show the SNR of noise
-        that the frame's estimate under-read.
+    def _low_snr_retry(self, frame: Tensor, state: TrackerState, new: TrackerState,
+                       compile: bool) -> TrackerState | None:
+        """The first step from ``state`` (no point has a PSR history yet) into ``frame`` ``(1, 1, H, W)`` tracked
+        again by the low-SNR twin (its :meth:`step`, turn matching included) where ``new``, that step, has weak
+        matches and residuals that show the SNR of noise that the frame's estimate under-read; None: no retry.
 
         :meth:`init` decides on the first frame's noise estimate, and a codec that stored dark frames at a high quality
         removed the noise's finest differences, which that estimate reads (a fifth to a third of the noise on the real
@@ -1052,12 +1054,12 @@ class PointTracker(nn.Module):
         the first decision (the runtime retries with graphs of its own)."""
         if (self.low_snr_tracker is None or self.low_snr_psr is None or self.noise_reg == 0 or exporting()
                 or not bool(torch.isinf(state.psr_mean).all())):
-            return new
+            return None
         if not float(self._frame_psr(new.psr, new.lost)) < self.low_snr_psr:
-            return new
+            return None
         snr, noise, estimate = self.first_step_noise(frame, state.filters[0], new.positions, new.lost)
         if not (float(snr) < self.low_snr_residual and float(noise) > float(estimate)):
-            return new
+            return None
         twin = self.low_snr_tracker
         start = replace(twin.init(state.frame, state.positions, switch=False), noise_floor=noise)
         return replace(twin.step(frame, start, compile), low_snr=True)

@@ -195,12 +195,15 @@ def test_a_noisy_sequence_runs_on_the_low_snr_graphs_as_in_pytorch(tracking_bund
     assert not tracker.on_low_snr_graphs and tracker.step_graph is tracker._graphs(False)[1]
 
 
-def test_a_first_step_in_under_read_noise_runs_again_on_the_low_snr_graphs_as_in_pytorch(tracking_bundle) -> None:
+@pytest.mark.parametrize("degrees", [0.0, 6.0])
+def test_a_first_step_in_under_read_noise_runs_again_on_the_low_snr_graphs_as_in_pytorch(tracking_bundle,
+                                                                                        degrees) -> None:
     """Dark frames stored as JPEG at quality 90 (``_fine_texture_pair``): the ``snr`` graph keeps the usual pair,
     the first step's PSRs and the ``first_step_noise`` graph send the sequence to the low-SNR graphs, as PyTorch
     retries its first step with the twin (checked), and both track alike, over a third frame (the first again) too,
-    on the noise floor that step measured."""
-    frames, points, _ = _fine_texture_pair("dark_jpeg")
+    on the noise floor that step measured. With the second frame turned by 6 degrees both steps are turn matched
+    on the low-SNR graphs, the retried one on its floor."""
+    frames, points, _ = _fine_texture_pair("dark_jpeg", degrees)
     images, start = [f.float().numpy() for f in (*frames, frames[0])], points.float().numpy()
     reference = PointTracker("ccot")
     tensors = [torch.from_numpy(f) for f in images]
