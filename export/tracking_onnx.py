@@ -37,7 +37,8 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   step with that noise as ``noise_floor`` (:meth:`PointTracker._low_snr_retry`).
 
 - ``turn.onnx``: ``start``, ``moved`` (P, 2) and ``tracked`` (P,) bool -> ``turn`` (1,) and ``similarity`` (2, 3):
-  the turn of the tracked points' steps and the similarity fitted to them (:mod:`models.tracking.turn`). Beyond
+  the turn of the tracked points' steps (0 where fewer than ``TURN_POINTS``, 10, are tracked) and the similarity
+  fitted to them (:mod:`models.tracking.turn`). Beyond
   ``thresholds.turn_match`` (null: off) the runtime tracks the step again from the previous frame warped by that
   similarity (``cv2.warpAffine``), as :meth:`PointTracker._turn_matched_step` does.
 
@@ -65,7 +66,7 @@ from models.tracking.blur import RadialPowerProfile, gaussian_blur, relative_blu
 from models.tracking.compression import BlockGridRatio
 from models.tracking.motion_blur import MotionBlurStreak
 from models.tracking.point_tracker import METHODS
-from models.tracking.turn import camera_turn, fit_similarity
+from models.tracking.turn import TURN_POINTS, camera_turn, fit_similarity
 from runtime.bundle import write_manifest
 from runtime.tracking import OnnxPointTracker
 
@@ -152,11 +153,12 @@ class RelativeBlurGraph(nn.Module):
 
 class TurnGraph(nn.Module):
     """:func:`~models.tracking.turn.camera_turn` and :func:`~models.tracking.turn.fit_similarity` of the tracked
-    points' steps: start, moved (P, 2), tracked (P,) bool -> turn (1,), similarity (2, 3)."""
+    points' steps: start, moved (P, 2), tracked (P,) bool -> turn (1,; 0 with fewer than ``TURN_POINTS`` tracked, as
+    :class:`PointTracker` reads it), similarity (2, 3)."""
 
     def forward(self, start: Tensor, moved: Tensor, tracked: Tensor) -> tuple[Tensor, Tensor]:
         weight = tracked.to(start.dtype)
-        return camera_turn(start, moved, weight).reshape(1), fit_similarity(start, moved, weight)
+        return camera_turn(start, moved, weight, TURN_POINTS).reshape(1), fit_similarity(start, moved, weight)
 
 
 def export_turn_graph(path: str | Path) -> None:

@@ -18,7 +18,9 @@ step's PSRs are low and the ``first_step_noise`` graph reads its residuals as no
 under-read, that step runs again on them from the first frame, with the noise it read as the frame's least noise
 (``PointTracker._low_snr_retry``). Where the ``turn`` graph reads the tracked points' steps as a camera turn
 beyond the bundle's ``turn_match``, the step runs again from the previous frame warped by the similarity fitted to
-them (``cv2.warpAffine``; ``PointTracker._turn_matched_step``). The tracks
+them (``cv2.warpAffine``; ``PointTracker._turn_matched_step``); a first step retried on the low-SNR graphs that
+turns is tracked again so on the tracker's own, from the turn the low-SNR step gave, and the retry decides again.
+The tracks
 file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
 ``points``, ``method`` and ``frames``.
 """
@@ -51,8 +53,6 @@ from core.streak import (
     streaks_matched,
 )
 from runtime.bundle import Bundle, add_runtime_arguments
-
-_FLOOR_POINTS = 10  # tracked points the turn of a step needs (PointTracker's turn matching)
 
 
 @dataclass
@@ -127,19 +127,13 @@ class OnnxPointTracker:
             image = self._frame(frame, t)
             if previous is None:
                 self._use_graphs(self._low_snr(image, points))
-                state = start = self._start(image, points)
+                state = self._start(image, points)
             else:
                 if image.shape != previous.shape:
                     raise InputError(f"frame {t} has size {image.shape[2:]}, frame 0 has {previous.shape[2:]}")
-                new = self._step(image, previous, state)
-                floor = self._retry_floor(image, start, new) if t == 1 else None
-                if floor is not None:  # the first step again, on the low-SNR graphs (PointTracker._low_snr_retry)
-                    self._use_graphs(True, floor)
-                    state = self._start(previous, points)
-                    new = self._step(image, previous, state)
-                state = self._turn_matched(image, previous, state, new)
-                if floor is not None:
-                    self._use_graphs(True)  # the floor holds for that step only, turn matching included
+                low_snr = self.on_low_snr_graphs  # the graphs of this state's filters
+                new = self._retried_step(image, previous, state, first=t == 1)
+                state = self._turn_matched(image, previous, state, new, low_snr, first=t == 1)
             previous = image
             tracks.append(state.positions)
             lost.append(state.flags)
@@ -185,34 +179,53 @@ class OnnxPointTracker:
         positions, flags, scores, means, *filters = outputs
         return _Tracks(positions, flags, scores, means, filters, reference, last, streak, template)
 
-    def _turn_matched(self, image: np.ndarray, previous: np.ndarray, state: _Tracks, new: _Tracks) -> _Tracks:
-        """``new``, the step from ``state`` into ``image`` after ``previous``, or, where the points tracked into
-        and out of ``previous`` (at least 10) turn by more than the bundle's ``turn_match`` (the ``turn`` graph),
-        the step again from ``previous`` warped by the similarity fitted to their steps, the points moved with it
-        and their filters trained afresh there (``PointTracker._turn_matched_step``)."""
-        tracked = ~(state.flags | new.flags)
-        if self.turn_graph is None or tracked.sum() < _FLOOR_POINTS:
+    def _retried_step(self, image: np.ndarray, previous: np.ndarray, state: _Tracks, first: bool) -> _Tracks:
+        """The step from ``state`` into ``image`` after ``previous``; in a ``first`` step whose PSRs are low and whose
+        residuals read as noise that the frame's estimate under-read (:meth:`_retry_floor`), that step again on the
+        low-SNR graphs, from ``previous`` at ``state``'s positions and with the noise it read as the frame's least
+        noise, turn matched on them (``PointTracker._matched_step`` and ``_low_snr_retry``)."""
+        new = self._step(image, previous, state)
+        floor = self._retry_floor(image, state, new) if first else None
+        if floor is None:
             return new
-        turn, similarity = self.turn_graph(state.positions, new.positions, tracked)
+        self._use_graphs(True, floor)
+        start = self._start(previous, state.positions)
+        new = self._turn_matched(image, previous, start, self._step(image, previous, start), True, first=False)
+        self._use_graphs(True)  # the floor holds for that step only
+        return new
+
+    def _turn_matched(self, image: np.ndarray, previous: np.ndarray, state: _Tracks, new: _Tracks, low_snr: bool,
+                      first: bool) -> _Tracks:
+        """``new``, the step from ``state`` (filters of the low-SNR graphs or not: ``low_snr``) into ``image`` after
+        ``previous``, or, where the points tracked into and out of ``previous`` (at least 10) turn by more than the
+        bundle's ``turn_match`` (the ``turn`` graph), the step again on ``state``'s graphs from ``previous`` warped by
+        the similarity fitted to their steps, the points moved with it and their filters trained afresh there, in a
+        ``first`` step retried as :meth:`_retried_step` does (``PointTracker._turn_matched_step``; ``new`` may come
+        from the low-SNR graphs, whose step then gave the turn)."""
+        if self.turn_graph is None:
+            return new
+        turn, similarity = self.turn_graph(state.positions, new.positions, ~(state.flags | new.flags))
         if not turn[0] > self.turn_match:
             return new
+        if self.on_low_snr_graphs != low_snr:
+            self._use_graphs(low_snr)
         height, width = previous.shape[2:]
         turned = cv2.warpAffine(previous[0, 0], similarity, (width, height), flags=cv2.INTER_LINEAR,
                                 borderMode=cv2.BORDER_REFLECT_101)[None, None]
         moved = (state.positions @ similarity[:, :2].T + similarity[:, 2]).astype(np.float32)
         flags, filters = self._retrained(turned, moved, state.flags, state.filters)
-        return self._step(image, turned, _Tracks(moved, flags, state.scores, state.means, filters))
+        return self._retried_step(image, turned, _Tracks(moved, flags, state.scores, state.means, filters), first)
 
-    def _retry_floor(self, image: np.ndarray, start: _Tracks, new: _Tracks) -> np.ndarray | None:
+    def _retry_floor(self, image: np.ndarray, state: _Tracks, new: _Tracks) -> np.ndarray | None:
         """The noise floor (1,) with which the first step into ``image`` is tracked again on the low-SNR graphs
-        (``start``: the state after the first frame, ``new``: after this step), or None: where the step's
+        (``state``: the state the step was tracked from, ``new``: after this step), or None: where the step's
         geometric-mean PSR is below the bundle's ``low_snr_psr``, the ``first_step_noise`` graph's residual SNR
         below ``low_snr_residual`` and its residual noise above the frame's (``PointTracker._low_snr_retry``)."""
         if self.noise_graph is None or self.on_low_snr_graphs:
             return None
         if not _frame_psr(new.scores, new.flags) < self.low_snr_psr:
             return None
-        snr, noise, estimate = self.noise_graph(image, start.filters[0], new.positions, new.flags)
+        snr, noise, estimate = self.noise_graph(image, state.filters[0], new.positions, new.flags)
         return noise[None] if snr < self.low_snr_residual and noise > estimate else None
 
     def _low_snr(self, image: np.ndarray, points: np.ndarray) -> bool:

@@ -108,7 +108,7 @@ from models.tracking.compression import (
 )
 from models.tracking.interleaved import interleaved_argmax, interleaved_peak, interleaved_psr
 from models.tracking.motion_blur import MAX_LENGTH, motion_blur_streak
-from models.tracking.turn import camera_turn, fit_similarity
+from models.tracking.turn import TURN_POINTS, camera_turn, fit_similarity
 
 METHODS = ("ccot", "ccot_ff", "mosse")
 DEFAULT_ETA = {"ccot": 0.1, "ccot_ff": 1.0, "mosse": 0.125}
@@ -735,13 +735,12 @@ class PointTracker(nn.Module):
         """The learning rate ``(1,)`` of this frame's samples: ``eta``, raised by ``turn_gain`` per unit of the
         frame's turn beyond ``turn_limit`` (:func:`~models.tracking.turn.camera_turn` of the steps ``start`` ->
         ``moved`` ``(P, 2)`` of the points ``tracked`` ``(P,)`` into and out of the previous frame, where there are
-        at least 10), at most ``eta_max`` and never below ``eta`` (``ccot_ff``'s 1 stays 1)."""
+        at least ``TURN_POINTS``), at most ``eta_max`` and never below ``eta`` (``ccot_ff``'s 1 stays 1)."""
         rate = torch.full((1,), self.eta, dtype=start.dtype, device=start.device)
         if self.turn_limit is None:
             return rate
-        turn = camera_turn(start, moved, tracked.to(start.dtype))
-        raised = (self.eta + self.turn_gain * (turn - self.turn_limit).clamp_min(0)).clamp(max=self.eta_max)
-        return torch.where(tracked.sum() >= _FLOOR_POINTS, raised, rate)
+        turn = camera_turn(start, moved, tracked.to(start.dtype), TURN_POINTS)
+        return (rate + self.turn_gain * (turn - self.turn_limit).clamp_min(0)).clamp(max=self.eta_max)
 
     def init(self, frame: Tensor, points: Tensor, switch: bool = True) -> TrackerState:
         """Train every point's filters on ``frame`` ``(H, W)``; points ``(P, 2)`` outside the image start
@@ -989,26 +988,33 @@ class PointTracker(nn.Module):
     def step(self, frame: Tensor, state: TrackerState, compile: bool = False) -> TrackerState:
         """Track all points of ``state`` into ``frame`` ``(H, W)``; ``compile``: run :meth:`forward` through
         ``torch.compile`` (see :meth:`track`). A first step whose matches are weak and whose residuals show
-        noise that the frame's estimate under-read is tracked again by the low-SNR twin (:meth:`_low_snr_retry`), turn
-        matching included; any other step is turn matched here (:meth:`_turn_matched_step`)."""
+        noise that the frame's estimate under-read is tracked again by the low-SNR twin (:meth:`_low_snr_retry`); a
+        step whose points turn is tracked again from the turned previous frame (:meth:`_turn_matched_step`).
+
+        Both can meet in a first step: a turn also weakens the matches and deforms the residuals, so the retry
+        fires on a fast-turning first step, noise or not. The twin's step (its wider coarse patches reach further)
+        then gives the turn, the tracker tracks the step again from the previous frame turned by it, and the retry
+        decides again on that step, from which the turn has gone: the twin keeps the sequence only where the
+        noise remains. Where the first decision alone counted, the twin kept every fast-turning sequence and
+        lost precision on it (docs/results.md)."""
         if state.low_snr:
             return replace(self.low_snr_tracker.step(frame, replace(state, low_snr=False), compile), low_snr=True)
         frame = self._frame(frame)
-        new = self._matched_step(frame, state, compile)
-        retried = self._low_snr_retry(frame, state, new, compile)
-        return retried if retried is not None else self._turn_matched_step(frame, state, new, compile)
+        return self._turn_matched_step(frame, state, self._matched_step(frame, state, compile), compile)
 
     def _matched_step(self, frame: Tensor, state: TrackerState, compile: bool) -> TrackerState:
-        """:meth:`step` into a ``(1, 1, H, W)`` frame before the low-SNR retry and the turn matching: with blur or
-        streak matching."""
+        """:meth:`step` into a ``(1, 1, H, W)`` frame before the turn matching: with blur or streak matching and the
+        low-SNR retry."""
         forward = self._compiled() if compile else self
         if self.blur_match is None:
-            return self._advance(forward, frame, state)
+            return self._low_snr_retry(frame, state, self._advance(forward, frame, state), compile)
         streak = self._streak(frame, state.streak)
         if streak is not None or state.template:
             previous = None if state.template else state.frame  # a first streak: was it there already?
-            return self._streak_matched_step(forward, frame, state, streak, previous)
-        return self._blur_matched_step(forward, frame, state)
+            new = self._streak_matched_step(forward, frame, state, streak, previous)
+        else:
+            new = self._blur_matched_step(forward, frame, state)
+        return self._low_snr_retry(frame, state, new, compile)
 
     def _turn_matched_step(self, frame: Tensor, state: TrackerState, new: TrackerState,
                            compile: bool) -> TrackerState:
@@ -1024,8 +1030,7 @@ class PointTracker(nn.Module):
             return new
         tracked = ~(state.lost | new.lost)
         weight = tracked.to(state.positions.dtype)
-        if int(tracked.sum()) < _FLOOR_POINTS or not float(camera_turn(state.positions, new.positions, weight)) > \
-                self.turn_match:
+        if not float(camera_turn(state.positions, new.positions, weight, TURN_POINTS)) > self.turn_match:
             return new
         similarity = fit_similarity(state.positions, new.positions, weight)
         turned = warp_affine(state.frame, similarity[None], tuple(state.frame.shape[-2:]), padding_mode="reflection",
@@ -1034,11 +1039,10 @@ class PointTracker(nn.Module):
         start = replace(state, frame=turned, positions=moved, reference=None, profile=None, streak=None, template=())
         return self._matched_step(frame, self._retrained(turned, start), compile)
 
-    def _low_snr_retry(self, frame: Tensor, state: TrackerState, new: TrackerState,
-                       compile: bool) -> TrackerState | None:
-        """The first step from ``state`` (no point has a PSR history yet) into ``frame`` ``(1, 1, H, W)`` tracked
-        again by the low-SNR twin (its :meth:`step`, turn matching included) where ``new``, that step, has weak
-        matches and residuals that show the SNR of noise that the frame's estimate under-read; None: no retry.
+    def _low_snr_retry(self, frame: Tensor, state: TrackerState, new: TrackerState, compile: bool) -> TrackerState:
+        """``new``, the first step from ``state`` (no point has a PSR history yet) into ``frame`` ``(1, 1, H, W)``, or
+        that step tracked again by the low-SNR twin where its matches are weak and its residuals show the SNR of noise
+        that the frame's estimate under-read.
 
         :meth:`init` decides on the first frame's noise estimate, and a codec that stored dark frames at a high quality
         removed the noise's finest differences, which that estimate reads (a fifth to a third of the noise on the real
@@ -1054,12 +1058,12 @@ class PointTracker(nn.Module):
         the first decision (the runtime retries with graphs of its own)."""
         if (self.low_snr_tracker is None or self.low_snr_psr is None or self.noise_reg == 0 or exporting()
                 or not bool(torch.isinf(state.psr_mean).all())):
-            return None
+            return new
         if not float(self._frame_psr(new.psr, new.lost)) < self.low_snr_psr:
-            return None
+            return new
         snr, noise, estimate = self.first_step_noise(frame, state.filters[0], new.positions, new.lost)
         if not (float(snr) < self.low_snr_residual and float(noise) > float(estimate)):
-            return None
+            return new
         twin = self.low_snr_tracker
         start = replace(twin.init(state.frame, state.positions, switch=False), noise_floor=noise)
         return replace(twin.step(frame, start, compile), low_snr=True)

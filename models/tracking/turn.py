@@ -15,6 +15,9 @@ from torch import Tensor, nn
 from core.errors import InputError
 
 _TINY = 1e-12
+#: The tracked points a frame's turn needs (:class:`~models.tracking.PointTracker` and its exported ``turn`` graph): a
+#: few points say little about the camera.
+TURN_POINTS = 10
 
 
 def _check(start: Tensor, moved: Tensor, weight: Tensor) -> None:
@@ -50,9 +53,10 @@ def fit_similarity(start: Tensor, moved: Tensor, weight: Tensor) -> Tensor:
     return torch.cat([linear, shift[..., None]], -1)
 
 
-def camera_turn(start: Tensor, moved: Tensor, weight: Tensor) -> Tensor:
+def camera_turn(start: Tensor, moved: Tensor, weight: Tensor, min_points: int = 2) -> Tensor:
     """The turn of points moving from ``start`` to ``moved`` ``(..., P, 2)`` (x, y px), each weighted by
-    ``weight`` ``(..., P)`` (0 leaves a point out): ``share * sqrt(angle^2 + log_scale^2)`` ``(...)``.
+    ``weight`` ``(..., P)`` (0 leaves a point out): ``share * sqrt(angle^2 + log_scale^2)`` ``(...)``; 0 where
+    fewer than ``min_points`` points weigh in.
 
     ``angle`` (rad) and ``log_scale`` are those of the weighted least-squares similarity ``x' = s R(angle) x + t``
     (:func:`fit_similarity`; closed form about the weighted centroids: ``a = sum w p.q / sum w |p|^2``,
@@ -68,12 +72,16 @@ def camera_turn(start: Tensor, moved: Tensor, weight: Tensor) -> Tensor:
     share = ((steps - left) / steps.clamp_min(_TINY)).clamp(0, 1)
     log_scale = 0.5 * torch.log((a.square() + b.square()).clamp_min(_TINY))  # hypot does not export
     turn = share * torch.sqrt(torch.atan2(b, a).square() + log_scale.square())
-    moving = (spread > _TINY) & (steps > _TINY)
+    moving = (spread > _TINY) & (steps > _TINY) & ((weight > 0).sum(-1) >= min_points)
     return torch.where(moving, turn, torch.zeros_like(turn))
 
 
 class CameraTurn(nn.Module):
-    """:func:`camera_turn` as a module."""
+    """:func:`camera_turn` as a module (``min_points`` as there)."""
+
+    def __init__(self, min_points: int = 2) -> None:
+        super().__init__()
+        self.min_points = min_points
 
     def forward(self, start: Tensor, moved: Tensor, weight: Tensor) -> Tensor:
-        return camera_turn(start, moved, weight)
+        return camera_turn(start, moved, weight, self.min_points)

@@ -15,7 +15,7 @@ from core.streak import streak_blur
 from export.tracking_onnx import GRAPH_JOBS, example_inputs, export_bundle, export_graphs, parity
 from models.tracking import PointTracker
 from models.tracking.motion_blur import motion_blur_streak
-from models.tracking.turn import camera_turn, fit_similarity
+from models.tracking.turn import TURN_POINTS, camera_turn, fit_similarity
 from runtime.bundle import Bundle
 
 pytestmark = pytest.mark.slow  # ONNX export
@@ -57,17 +57,19 @@ def test_snr_graph_matches_pytorch(tracking_bundle) -> None:
 
 def test_turn_graph_matches_pytorch(tracking_bundle) -> None:
     """At point counts other than exported, with untracked points among them: the turn and the fitted similarity
-    of ``models.tracking.turn``; the manifest's ``turn_match`` is the tracker's."""
+    of ``models.tracking.turn``, the turn 0 where fewer than ``TURN_POINTS`` (10) points are tracked (the runtime
+    does not count them itself); the manifest's ``turn_match`` is the tracker's."""
     turn_graph = Bundle(tracking_bundle, "tracking").graph("turn")
     gen = torch.Generator().manual_seed(5)
-    for points, degrees in ((12, 3.0), (300, 9.0)):
+    for points, degrees, count in ((12, 3.0, 9), (12, 3.0, 10), (300, 9.0, 200)):
         start = torch.rand(points, 2, generator=gen) * 200
         c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
         moved = start @ torch.tensor([[c, s], [-s, c]]) * 1.05 + torch.randn(points, 2, generator=gen) + 4
-        tracked = torch.rand(points, generator=gen) > 0.3
+        tracked = torch.randperm(points, generator=gen) < count
         turn, similarity = turn_graph(start.numpy(), moved.numpy(), tracked.numpy())
         weight = tracked.float()
-        np.testing.assert_allclose(turn, camera_turn(start, moved, weight).reshape(1).numpy(), rtol=1e-4)
+        assert (turn[0] > 0.05) == (count >= TURN_POINTS), (count, turn)
+        np.testing.assert_allclose(turn, camera_turn(start, moved, weight, TURN_POINTS).reshape(1).numpy(), rtol=1e-4)
         np.testing.assert_allclose(similarity, fit_similarity(start, moved, weight).numpy(), rtol=1e-4, atol=1e-4)
     thresholds = Bundle(tracking_bundle, "tracking").section("thresholds")
     assert thresholds["turn_match"] == PointTracker("ccot").turn_match

@@ -201,8 +201,9 @@ def test_a_first_step_in_under_read_noise_runs_again_on_the_low_snr_graphs_as_in
     """Dark frames stored as JPEG at quality 90 (``_fine_texture_pair``): the ``snr`` graph keeps the usual pair,
     the first step's PSRs and the ``first_step_noise`` graph send the sequence to the low-SNR graphs, as PyTorch
     retries its first step with the twin (checked), and both track alike, over a third frame (the first again) too,
-    on the noise floor that step measured. With the second frame turned by 6 degrees both steps are turn matched
-    on the low-SNR graphs, the retried one on its floor."""
+    on the noise floor that step measured. With the second frame turned by 6 degrees the retried step is turn
+    matched on the low-SNR graphs, tracked again on the usual pair from the turn it gave and retried again there
+    (the runtime crashed here on the two pairs' filter shapes), and the third frame turns back."""
     frames, points, _ = _fine_texture_pair("dark_jpeg", degrees)
     images, start = [f.float().numpy() for f in (*frames, frames[0])], points.float().numpy()
     reference = PointTracker("ccot")
@@ -214,6 +215,23 @@ def test_a_first_step_in_under_read_noise_runs_again_on_the_low_snr_graphs_as_in
     tracker = OnnxPointTracker(tracking_bundle, threads=1)
     tracks, lost, _ = tracker.track(images, start)
     assert tracker.on_low_snr_graphs
+    ref_tracks, ref_lost, _ = reference.track(tensors, torch.from_numpy(start))
+    np.testing.assert_array_equal(lost, ref_lost.numpy())
+    assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01
+
+
+def test_a_turning_first_step_retried_without_noise_returns_to_the_usual_graphs_as_in_pytorch(tracking_bundle):
+    """The low-contrast pair turned by 8 degrees: the first step runs again on the low-SNR graphs, its turn sends it
+    back to the usual pair, where the retry no longer fires (PyTorch keeps its tracker, checked), and the runtime
+    ends on the usual pair with PyTorch's tracks, over a third frame (the first again) too."""
+    frames, points, _ = _fine_texture_pair("low_contrast", 8.0)
+    images, start = [f.float().numpy() for f in (*frames, frames[0])], points.float().numpy()
+    reference = PointTracker("ccot")
+    tensors = [torch.from_numpy(f) for f in images]
+    assert not reference.step(tensors[1], reference.init(tensors[0], torch.from_numpy(start))).low_snr
+    tracker = OnnxPointTracker(tracking_bundle, threads=1)
+    tracks, lost, _ = tracker.track(images, start)
+    assert not tracker.on_low_snr_graphs
     ref_tracks, ref_lost, _ = reference.track(tensors, torch.from_numpy(start))
     np.testing.assert_array_equal(lost, ref_lost.numpy())
     assert np.abs(tracks - ref_tracks.numpy()).max() < 0.01

@@ -66,6 +66,19 @@ def test_a_translation_or_a_single_point_does_not_turn():
     assert camera_turn(start, turned, torch.zeros(30)).item() == 0
 
 
+def test_fewer_points_than_asked_do_not_turn():
+    """``min_points`` counts the points that weigh in: 9 of 30 read 0 where 10 are asked, 10 read the turn of those
+    10 alone (the same as with every other weight 0 and no minimum)."""
+    start = torch.rand(30, 2, dtype=torch.float64) * 100
+    turned = torch.tensor(_similar(start.numpy(), 0.1, 1.05, (3.0, -1.0)))
+    for count in (9, 10):
+        weight = (torch.arange(30) < count).double()
+        plain = camera_turn(start, turned, weight)
+        assert plain.item() == pytest.approx(math.hypot(0.1, math.log(1.05)), rel=1e-9)
+        assert camera_turn(start, turned, weight, 10).item() == (0 if count < 10 else plain.item())
+        assert CameraTurn(10)(start, turned, weight).item() == camera_turn(start, turned, weight, 10).item()
+
+
 def test_bad_shapes_refused():
     with pytest.raises(InputError, match="start and moved"):
         camera_turn(torch.zeros(5, 2), torch.zeros(5, 3), torch.ones(5))
