@@ -1091,14 +1091,20 @@ def test_a_first_step_in_under_read_noise_is_tracked_again_by_the_twin(monkeypat
     assert not state.low_snr and len(floors) == 2
 
 
-def _counted_steps(monkeypatch, tracker: PointTracker) -> tuple[list, list]:
-    """The noise floors of the tracker's own steps and of its twin's, recorded as they run."""
+def _turned_first_step(monkeypatch, condition: str, degrees: float):
+    """The first step of the fine-texture pair under ``condition``, its second frame turned by ``degrees``
+    (:func:`_fine_texture_pair`; the tracker keeps the sequence at :meth:`init`, checked): the state after it, the
+    truth, and the noise floors of the tracker's own steps and of its twin's, recorded as they ran."""
+    frames, points, truth = _fine_texture_pair(condition, degrees=degrees)
+    tracker = PointTracker().double()
     steps, floors = [], []
     for module, record in ((tracker, steps), (tracker.low_snr_tracker, floors)):
         forward = module.forward
         monkeypatch.setattr(module, "forward", lambda *args, noise_floor=None, record=record, forward=forward:
                             record.append(noise_floor) or forward(*args, noise_floor=noise_floor))
-    return steps, floors
+    state = tracker.init(frames[0], points)
+    assert not state.low_snr
+    return tracker.step(frames[1], state), truth, steps, floors
 
 
 def test_a_turning_first_step_in_under_read_noise_stays_with_the_twin(monkeypatch):
@@ -1107,12 +1113,7 @@ def test_a_turning_first_step_in_under_read_noise_stays_with_the_twin(monkeypatc
     the tracker tracks the step again from the previous frame turned by the twin's step (its second own step),
     and there the residuals still show the noise, so the twin tracks it once more, on the floor read there, and
     keeps the sequence. Nearly every point ends within 1 px of the truth (1-2 of 441 miss, measured)."""
-    frames, points, truth = _fine_texture_pair("dark_jpeg", degrees=6.0)
-    tracker = PointTracker().double()
-    steps, floors = _counted_steps(monkeypatch, tracker)
-    state = tracker.init(frames[0], points)
-    assert not state.low_snr
-    new = tracker.step(frames[1], state)
+    new, truth, steps, floors = _turned_first_step(monkeypatch, "dark_jpeg", 6.0)
     assert new.low_snr and steps == [None, None] and len(floors) == 3, (steps, floors)
     assert floors[0] is not None and floors[1] is floors[0] and floors[2] is not floors[0]
     assert int(((new.positions - truth).norm(dim=-1) > 1).sum()) <= 5
@@ -1124,12 +1125,7 @@ def test_a_turning_first_step_retried_without_noise_returns_to_the_tracker(monke
     read as under-read noise, so the twin tracks the step; the tracker tracks it again from the previous frame
     turned by the twin's step, where the residuals no longer read as noise, and keeps the sequence: every point
     within 0.5 px of the truth (at most 0.106 px, measured)."""
-    frames, points, truth = _fine_texture_pair("low_contrast", degrees=8.0)
-    tracker = PointTracker().double()
-    steps, floors = _counted_steps(monkeypatch, tracker)
-    state = tracker.init(frames[0], points)
-    assert not state.low_snr
-    new = tracker.step(frames[1], state)
+    new, truth, steps, floors = _turned_first_step(monkeypatch, "low_contrast", 8.0)
     assert not new.low_snr and len(steps) == 2 and floors and floors[0] is not None, (steps, floors)
     assert (new.positions - truth).norm(dim=-1).max() < 0.5
 
