@@ -18,9 +18,8 @@ step's PSRs are low and the ``first_step_noise`` graph reads its residuals as no
 under-read, that step runs again on them from the first frame, with the noise it read as the frame's least noise
 (``PointTracker._low_snr_retry``). Where the ``turn`` graph reads the tracked points' steps as a camera turn
 beyond the bundle's ``turn_match``, the step runs again from the previous frame warped by the similarity fitted to
-them (``cv2.warpAffine``; ``PointTracker._turn_matched_step``); a first step retried on the low-SNR graphs that
-turns is tracked again so on the tracker's own, from the turn the low-SNR step gave, and the retry decides again.
-The tracks
+them (``cv2.warpAffine``; ``PointTracker._turn_matched_step``); where a retried first step turns, the usual graphs
+track it again so, from the turn the low-SNR step gave, and the retry decides again. The tracks
 file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
 ``points``, ``method`` and ``frames``.
 """

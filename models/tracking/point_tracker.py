@@ -995,8 +995,8 @@ class PointTracker(nn.Module):
         fires on a fast-turning first step, noise or not. The twin's step (its wider coarse patches reach further)
         then gives the turn, the tracker tracks the step again from the previous frame turned by it, and the retry
         decides again on that step, from which the turn has gone: the twin keeps the sequence only where the
-        noise remains. Where the first decision alone counted, the twin kept every fast-turning sequence and
-        lost precision on it (docs/results.md)."""
+        noise remains. Where the first decision alone counted, the twin kept the fast-turning sequences the retry
+        caught and lost precision on them (docs/results.md)."""
         if state.low_snr:
             return replace(self.low_snr_tracker.step(frame, replace(state, low_snr=False), compile), low_snr=True)
         frame = self._frame(frame)
