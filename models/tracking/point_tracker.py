@@ -1019,8 +1019,8 @@ class PointTracker(nn.Module):
     def _turn_matched_step(self, frame: Tensor, state: TrackerState, new: TrackerState,
                            compile: bool) -> TrackerState:
         """``new``, the step from ``state`` into ``frame``, or, where its tracked points turn by more than
-        ``turn_match`` (:func:`~models.tracking.turn.camera_turn`; at least 10 points tracked into and out of the
-        previous frame), the step tracked again from the previous frame turned onto this one: warped by the
+        ``turn_match`` (:func:`~models.tracking.turn.camera_turn`; at least ``TURN_POINTS`` points tracked into and
+        out of the previous frame), the step tracked again from the previous frame turned onto this one: warped by the
         similarity fitted to the points' steps (:func:`~models.tracking.turn.fit_similarity`), the points moved
         with it and their filters trained afresh there. A filter only finds a patch that looks like its samples,
         and a camera that rolls or zooms by more than a few degrees or percent a frame turns every patch away
