@@ -14,8 +14,9 @@ darkness (:mod:`data.flow.homography`, ``--homography IMAGE ...``, named ``homog
 stem>``, 6 frames; the conditions ``stress_dark`` etc. put every frame under a photometric stress condition
 instead; ``--homography-cameras moving fixed`` adds the same sets seen by a fixed camera, as the Oxford
 sets are, named ``homography_fixed_<condition>_...``; ``fixed`` alone runs only those; ``--homography-geometry G``
-multiplies each step's rotation, scale change and tilt by G, a faster-turning and zooming camera, recorded in the
-JSON), real sequences with known
+multiplies each step's rotation, scale change and tilt by G, a faster-turning and zooming camera, and
+``--homography-step PX`` sets each step's largest translation per axis (default 6 px), a faster-moving one, both
+recorded in the JSON), real sequences with known
 homographies from their first frame, such as the Oxford sets or HPatches themselves (``--homography-folder DIR ...``,
 :mod:`data.flow.homography_folder`, named ``homography_folder_<parent>_<folder>``) and real videos without
 ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named ``roundtrip_<folder>``:
@@ -182,16 +183,16 @@ def stress_dataset(condition: str, n_frames: int, n_points: int, seed: int = 0,
 
 def homography_dataset(image: str | Path, condition: str, n_points: int, seed: int = 0,
                        detector: Detector = DETECTOR, frames: int = 6, moving: bool = True,
-                       geometry: float = 1.0) -> Dataset:
+                       geometry: float = 1.0, step: float = 6.0) -> Dataset:
     """A real photograph (read as gray) through ``frames`` chained homographies under ``condition``
     (:func:`data.flow.homography_sequence`; ``moving=False``: a fixed camera; ``geometry``: the multiplier of
-    each step's rotation, scale change and tilt) or, for ``stress_<condition>``,
-    the undegraded views under that photometric stress condition (:func:`data.flow.stress_frames`, seeded: every
-    frame at full strength), ground truth at the last frame."""
+    each step's rotation, scale change and tilt; ``step``: the largest translation of a step per axis, px) or,
+    for ``stress_<condition>``, the undegraded views under that photometric stress condition
+    (:func:`data.flow.stress_frames`, seeded: every frame at full strength), ground truth at the last frame."""
     stress = condition.removeprefix(STRESS_PREFIX) if condition.startswith(STRESS_PREFIX) else None
     photograph = read_frame_gray(image)
     try:
-        seq = homography_sequence(photograph, "none" if stress else condition, frames, seed, moving=moving,
+        seq = homography_sequence(photograph, "none" if stress else condition, frames, seed, step, moving=moving,
                                   geometry=geometry)
     except InputError as err:  # the sequence's own checks do not know the file
         raise InputError(f"{image}: {err}") from err
@@ -602,6 +603,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--homography-geometry", type=float, default=1.0, metavar="G",
                         help="multiplier of each homography step's rotation (up to 2 degrees), scale change (3 %%) "
                         "and tilt (default 1; 3: up to 6 degrees and 9 %% a frame, a fast-turning or zooming camera)")
+    parser.add_argument("--homography-step", type=float, default=6.0, metavar="PX",
+                        help="largest translation of each homography step along each axis in px (default 6; 30: up "
+                        "to about 42 px a frame, fast motion as in a handheld or vehicle camera)")
     parser.add_argument("--homography-folder", nargs="+", action="extend", default=[], metavar="DIR",
                         help="real sequences with known homographies from their first frame (Oxford layout "
                         "img1.ppm + H1to2p ..., or HPatches 1.ppm + H_1_2 ...); repeat or list several")
@@ -668,7 +672,8 @@ def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[s
                 path = Path(image)
                 name = f"{group}_{path.parent.name}_{path.stem}"
                 datasets[name] = homography_dataset(path, condition, args.points, args.seed, detector,
-                                                    moving=camera == "moving", geometry=args.homography_geometry)
+                                                    moving=camera == "moving", geometry=args.homography_geometry,
+                                                    step=args.homography_step)
                 groups[name] = group
     for folder in args.homography_folder:
         path = Path(folder)
@@ -717,7 +722,8 @@ def main(argv: list[str] | None = None) -> int:
                           "threads": args.threads, "clock": clock_name(args.device),
                           "timing": f"best of {args.repeats} runs", "tracker": settings,
                           "detector": {"spacing": args.spacing, "quality": args.quality},
-                          **({"homography_geometry": args.homography_geometry} if args.homography else {}),
+                          **({"homography_geometry": args.homography_geometry,
+                              "homography_step": args.homography_step} if args.homography else {}),
                           "retained_freed_memory": retained}))
     else:
         print("\n".join([table(result), *summary_lines(summary(result, groups))]))

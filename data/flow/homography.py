@@ -111,7 +111,7 @@ def homography_sequence(
     (``motion_angle``: the motion blur's direction in radians, x towards y; None: drawn from the seed;
     ``moving=False``: a fixed camera, every homography the identity, the frames degraded as in the moving
     sequence of the same seed; ``geometry``: the multiplier of each step's rotation, scale change and tilt, the
-    module docstring)."""
+    module docstring; ``step``: the largest translation of a step along each axis, in px)."""
     if condition not in HOMOGRAPHY_CONDITIONS:
         choices = ", ".join(HOMOGRAPHY_CONDITIONS)
         raise InputError(f"unknown homography condition {condition!r}; choose one of {choices}")
@@ -122,6 +122,8 @@ def homography_sequence(
         raise InputError(f"a sequence needs at least 2 frames, got {frames}")
     if not (geometry >= 0 and np.isfinite(geometry)):
         raise InputError(f"the geometry multiplier must be a finite number >= 0, got {geometry}")
+    if not (step >= 0 and np.isfinite(step)):
+        raise InputError(f"the translation step must be a finite number of px >= 0, got {step}")
     height, width = image.shape
     # the same chain for every condition
     chain = _homographies(np.random.default_rng(seed), frames, width, height, step, geometry)

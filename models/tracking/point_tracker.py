@@ -123,6 +123,7 @@ _PYRDOWN_TAPS = (1.0, 5.0, 10.0, 10.0, 5.0, 1.0)
 _PYRDOWN_NOISE_GAIN = (sum(t * t for t in _PYRDOWN_TAPS) / sum(_PYRDOWN_TAPS) ** 2) ** 2
 _SEARCH_SIGMA = 3.0  # px: the default displacement prior of the fine levels (PointTracker's search_sigma)
 _FINE_PATCH, _COARSE_PATCH = 31, 21  # px: default patch side at level 0 and at the coarser levels (patch_size)
+_FINE_NEWTON = 2  # default Newton steps at level 0 (newton_iterations); the coarser levels take the parabola
 # default fractions of each level's frequencies the filters keep at level 0 and at the coarser levels (band)
 _FINE_BAND, _COARSE_BAND = 0.5, 0.7
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
@@ -328,7 +329,8 @@ class PointTracker(nn.Module):
         method: 0.1, 1.0, 0.125).
         reg_rel: regulariser relative to the mean sample energy (``beta^2`` / ``eps``).
         newton_iterations: sub-pixel Newton steps of the continuous variants, one for all levels or one per
-        level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does).
+        level (finest first); 0 takes the grid peak refined by a parabola (MOSSE always does). None: 2 at level 0,
+        whose estimate is the output, and 0 at the coarser levels, for any number of levels.
         search_sigma: per level (finest first), the std in px of that level of a Gaussian displacement prior
         that weights the level's score map around the estimate handed down from the coarser levels before its
         peak is taken; 0 searches the whole map. The coarser levels have placed a point within about a pixel of
@@ -444,7 +446,7 @@ class PointTracker(nn.Module):
         sigma: float | None = None,
         eta: float | None = None,
         reg_rel: float = 1e-2,
-        newton_iterations: int | tuple[int, ...] = (2, 0, 0, 0),
+        newton_iterations: int | tuple[int, ...] | None = None,
         search_sigma: float | tuple[float, ...] | None = None,
         first_step_sigma: float | tuple[float, ...] | None = None,
         psr_threshold: float = 2.5,
@@ -491,6 +493,8 @@ class PointTracker(nn.Module):
         self.sizes = _per_level(patch_size, levels, "patch_size")
         if any(n % 2 == 0 for n in self.sizes) or self.sizes[0] < psr_exclude + 2:
             raise InputError(f"patch sizes must be odd and larger than the PSR window, got {self.sizes}")
+        if newton_iterations is None:
+            newton_iterations = (_FINE_NEWTON,) + (0,) * (levels - 1)
         self.newton = (0,) * levels if method == "mosse" else _per_level(newton_iterations, levels, "newton")
         if search_sigma is None:  # the two finest levels, never the coarsest
             search_sigma = tuple(_SEARCH_SIGMA if lv < min(2, levels - 1) else 0.0 for lv in range(levels))

@@ -165,6 +165,33 @@ def test_homography_geometry_reaches_the_sequences(tmp_path, capsys):
     assert "img.png" in err and "geometry multiplier" in err
 
 
+def test_homography_step_reaches_the_sequences(tmp_path, capsys):
+    """``--homography-step 20``: the rows' truth is that of the generator's sequence with steps of up to 20 px
+    (built here independently), the JSON records the step, and a negative one is refused naming the image."""
+    from core.frames import read_frame_gray
+    from data.flow import homography_sequence
+
+    rng = np.random.default_rng(3)
+    texture = cv2.GaussianBlur(rng.normal(128, 40, (160, 200)), (0, 0), 1.5).clip(0, 255).astype(np.uint8)
+    image = tmp_path / "img.png"
+    cv2.imwrite(str(image), texture)
+    argv = ["--homography", str(image), "--homography-conditions", "none", "--points", "30", "--seed", "2"]
+    datasets, _ = point_tracking.build_datasets(point_tracking.build_parser().parse_args(
+        [*argv, "--homography-step", "20"]))
+    data = datasets[f"homography_none_{tmp_path.name}_img"]
+    tracks, valid = homography_sequence(read_frame_gray(image), "none", 6, 2, step=20.0).track(data.points)
+    np.testing.assert_array_equal(data.truth, tracks[-1])
+    np.testing.assert_array_equal(data.valid, valid[-1])
+    plain = homography_sequence(read_frame_gray(image), "none", 6, 2).track(data.points)[0][-1]
+    assert np.abs(plain - tracks[-1]).max() > 5.0  # the larger steps moved the truth
+    assert point_tracking.main([*argv, "--homography-step", "20", "--methods", "klt", "--repeats", "1",
+                                "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["homography_step"] == 20.0
+    assert point_tracking.main([*argv, "--homography-step", "-1", "--json"]) == 2
+    err = capsys.readouterr().err
+    assert "img.png" in err and "translation step" in err
+
+
 def test_homography_folder_rows_match_the_generated_sequence(tmp_path, capsys):
     """``--homography-folder DIR``: a generated homography sequence written in the Oxford layout (frames and
     ``H1tokp`` files) gives the dataset that :func:`homography_dataset` builds from the image itself (frames, start

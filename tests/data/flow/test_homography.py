@@ -140,3 +140,21 @@ def test_geometry_multiplies_each_steps_rotation_and_scale():
 def test_bad_geometry_refused(geometry):
     with pytest.raises(InputError, match="geometry multiplier"):
         homography_sequence(_image(), "none", frames=3, geometry=geometry)
+
+
+def test_step_scales_each_steps_translation():
+    """The same seed's chain with ``step`` 5 times larger and no turn (``geometry`` 0) moves 5 times as far in
+    every step: pure translations, read back from the chained homographies."""
+    image = _image()
+    slow = homography_sequence(image, "none", frames=5, seed=2, geometry=0.0, step=2.0).homographies
+    fast = homography_sequence(image, "none", frames=5, seed=2, geometry=0.0, step=10.0).homographies
+    moves = [np.diff(h[:, :2, 2], axis=0) for h in (slow, fast)]
+    assert np.abs(moves[0]).max() > 0.5 and np.abs(moves[0]).max() <= 2.0  # within +-step per axis
+    np.testing.assert_allclose(moves[1], 5 * moves[0], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(fast[:, :2, :2], np.broadcast_to(np.eye(2), (5, 2, 2)), atol=1e-12)
+
+
+@pytest.mark.parametrize("step", [-1.0, float("nan"), float("inf")])
+def test_bad_step_refused(step):
+    with pytest.raises(InputError, match="translation step"):
+        homography_sequence(_image(), "none", frames=3, step=step)

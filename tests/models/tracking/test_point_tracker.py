@@ -383,6 +383,9 @@ def test_per_level_settings_are_checked():
     # the default band keeps round(0.5 * 15) = 8 frequencies of the 31 px level 0, round(0.7 * 10) = 7 of the 21 px
     assert PointTracker("ccot").sizes == (31, 21, 21, 21) and PointTracker("ccot").bands == (8, 7, 7, 7)
     assert PointTracker("ccot", levels=2, newton_iterations=2).bands == (8, 7)
+    # the default Newton steps follow the number of levels: 2 at level 0, none at the coarser levels
+    assert PointTracker("ccot").newton == (2, 0, 0, 0) and PointTracker("ccot", levels=5).newton == (2, 0, 0, 0, 0)
+    assert PointTracker("ccot", levels=1).newton == (2,) and PointTracker("mosse", levels=5).newton == (0,) * 5
     assert PointTracker("ccot", levels=3, patch_size=(21, 15, 25), newton_iterations=2).sizes == (21, 15, 25)
     with pytest.raises(InputError, match="one value per pyramid level"):
         PointTracker("ccot", patch_size=(21, 15))
