@@ -21,22 +21,22 @@ homographies from their first frame, such as the Oxford sets or HPatches themsel
 :mod:`data.flow.homography_folder`, named ``homography_folder_<parent>_<folder>``) and real videos without
 ground truth played forward and back (``--roundtrip DIR ...``, e.g. the DAVIS folders, named ``roundtrip_<folder>``:
 ``--roundtrip-frames`` frames from ``--roundtrip-start`` (default 0) on, every ``--roundtrip-stride``-th (default 1;
-more: faster real motion), then the same frames in reverse order back to the first, so every point's truth at the
-last frame is its start; this measures the drift and the false tracks that real motion, motion blur and deformation
-cause over many frames, but it would also reward a tracker that never moves, so it complements the sets with ground
-truth rather than replacing them; ``--roundtrip-conditions`` adds sets of rows with every frame degraded as in the
-homography sets, at ``--roundtrip-strength`` (1: as their last frame), or as in a photometric stress set
-(``stress_dark`` etc.), named ``roundtrip_<condition>_<folder>``). Metrics at the last frame, per method and
-dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``,
+more: faster real motion), enlarged ``--roundtrip-scale`` times (default 1; bicubic, a stand-in for the same video at
+a higher resolution, whose motion in pixels grows alike), then the same frames in reverse order back to the first, so
+every point's truth at the last frame is its start; this measures the drift and the false tracks that real motion,
+motion blur and deformation cause over many frames, but it would also reward a tracker that never moves, so it
+complements the sets with ground truth rather than replacing them; ``--roundtrip-conditions`` adds sets of rows with
+every frame degraded as in the homography sets, at ``--roundtrip-strength`` (1: as their last frame), or as in a
+photometric stress set (``stress_dark`` etc.), named ``roundtrip_<condition>_<folder>``). Metrics at the last frame,
+per method and dataset: ``epe_median``, ``epe_mean``, ``inlier_frac`` (not lost and EPE < 3 px), ``inlier_epe_mean``,
 ``precision_at`` (fraction not lost with EPE below 1, 2, 3 px), ``lost_frac``, ``point_frames_per_s``,
 ``first_call_s``, with KLT in the run ``speed_vs_klt`` (the ratio of point-frames per second) and, where an occluder
 hid some points (``stress_occlusion``), ``occluded_lost_frac``: the fraction of those flagged lost. Lost points keep
 their last position for the EPE statistics and never count as inliers. With KLT in the run, ``summary`` (JSON; the
 table's last lines) counts per group of rows (``pairs``: the ``--sintel`` folders, ``pairs_<condition>``,
-``synthetic``, ``stress``, ``homography[_fixed]_<condition>``, ``homography_folder``, ``roundtrip[_<condition>]``)
-and over ``all`` of them the rows where each other method has at least KLT's inlier fraction and at most its mean
-inlier EPE (a KLT row without inliers counts as beaten on precision), names the rows it loses and gives every
-method's means.
+``synthetic``, ``stress``, ``homography[_fixed]_<condition>``, ``homography_folder``, ``roundtrip[_<condition>]``) and
+over ``all`` of them the rows where each other method has at least KLT's inlier fraction and at most its mean inlier
+EPE (a KLT row without inliers counts as beaten on precision), names the rows it loses and gives every method's means.
 
 Timing: on the CPU every method is timed by the CPU time of this process (``time.process_time``) with torch and
 OpenCV held to the same thread count, so the ratios hold on a machine shared with other jobs; with a CUDA device by
@@ -71,6 +71,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 import torch
 
@@ -212,22 +213,28 @@ def homography_folder_dataset(folder: str | Path, n_points: int, detector: Detec
 
 def roundtrip_dataset(folder: str | Path, n_frames: int, n_points: int, detector: Detector = DETECTOR,
                       condition: str = "none", strength: float = 1.0, seed: int = 0,
-                      start: int = 0, stride: int = 1) -> Dataset:
+                      start: int = 0, stride: int = 1, scale: float = 1.0) -> Dataset:
     """``n_frames`` frames of a real video (a folder of images, :func:`~core.frames.read_frames`) from frame
     ``start`` on, every ``stride``-th (2 or more: the video's own motion that many times faster per frame), and
     then the same frames back to the first (``2 n_frames - 1`` in all), every frame degraded by ``condition`` at
     ``strength`` (:func:`data.flow.degrade`, seeded; ``motion`` in one direction drawn from the seed) or, for
     ``stress_<condition>``, by that photometric stress condition (:func:`data.flow.stress_frames`, seeded; no
-    strength); the truth at the last frame is the start points themselves."""
+    strength), after enlarging every frame ``scale`` times (bicubic; 1: as stored); the truth at the last frame is
+    the start points themselves."""
     if n_frames < 2 or start < 0 or stride < 1:
         raise InputError(f"a round trip needs at least 2 frames from a start >= 0 with a stride >= 1, got "
                          f"{n_frames} from {start} with stride {stride}")
+    if not (1 <= scale <= 8):
+        raise InputError(f"a round trip's scale must lie in [1, 8], got {scale}")
     needed = start + stride * (n_frames - 1) + 1
     frames, _ = read_frames(folder, limit=needed)  # the frames played, not the whole video
     if len(frames) < needed:
         raise InputError(f"{folder}: {len(frames)} frames, the round trip asks for {n_frames} from frame {start} "
                          f"with stride {stride}")
     frames = frames[start::stride]
+    if scale != 1:
+        frames = [cv2.resize(np.asarray(f, np.float32), None, fx=scale, fy=scale, interpolation=cv2.INTER_CUBIC)
+                  for f in frames]
     if condition.startswith(STRESS_PREFIX):
         frames = stress_frames(np.stack(frames), condition.removeprefix(STRESS_PREFIX), seed)
     elif condition != "none":
@@ -617,6 +624,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the round trips' first frame (index into each video's sorted frames)")
     parser.add_argument("--roundtrip-stride", type=int, default=1,
                         help="play every k-th frame of the round-trip videos (k times their motion per frame)")
+    parser.add_argument("--roundtrip-scale", type=float, default=1.0,
+                        help="enlarge the round-trip frames this many times (bicubic, 1-8; default 1), a stand-in for "
+                        "the videos at a higher resolution, e.g. 3: 240p DAVIS frames at 720p")
     parser.add_argument("--roundtrip-conditions", nargs="+", choices=SEQUENCE_CONDITIONS, default=["none"],
                         metavar="CONDITION", help="degradations of the round-trip videos, each a set of rows: "
                         + ", ".join(SEQUENCE_CONDITIONS))
@@ -640,7 +650,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--tracker", nargs="+", metavar="KEY=JSON",
                         help="settings of the DCF trackers (PointTracker arguments), e.g. noise_reg=0 "
-                             f"'patch_size=[31,15,15,15]'; not of {ORT}, which runs its bundle's")
+                             f"'patch_size=[31,15,15,15,15]'; not of {ORT}, which runs its bundle's")
     parser.add_argument("--device", default="cpu", help="torch device for the DCF trackers")
     parser.add_argument(
         "--threads",
@@ -685,7 +695,7 @@ def build_datasets(args: argparse.Namespace) -> tuple[dict[str, Dataset], dict[s
             name = f"{group}_{Path(folder).name}"
             datasets[name] = roundtrip_dataset(folder, args.roundtrip_frames, args.points, detector, condition,
                                                args.roundtrip_strength, args.seed, args.roundtrip_start,
-                                               args.roundtrip_stride)
+                                               args.roundtrip_stride, args.roundtrip_scale)
             groups[name] = group
     if args.synthetic or not (datasets or args.stress is not None):
         datasets["synthetic"] = synthetic_dataset(args.frames, args.points, args.seed, detector)
@@ -724,6 +734,7 @@ def main(argv: list[str] | None = None) -> int:
                           "detector": {"spacing": args.spacing, "quality": args.quality},
                           **({"homography_geometry": args.homography_geometry,
                               "homography_step": args.homography_step} if args.homography else {}),
+                          **({"roundtrip_scale": args.roundtrip_scale} if args.roundtrip else {}),
                           "retained_freed_memory": retained}))
     else:
         print("\n".join([table(result), *summary_lines(summary(result, groups))]))

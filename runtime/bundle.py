@@ -42,8 +42,9 @@ TASK_GRAPHS = {
 #: 2: the ``snr`` graph leaves out the points outside the frame itself, so the runtime no longer filters them; 3: the
 #: ``first_step_noise`` graph and the ``noise_floor`` input of ``step_low_snr``; 4: the ``turn`` graph and the
 #: ``turn_match`` threshold; 5: the ``turn`` graph reads 0 where fewer than 10 points are tracked, which the runtime
-#: no longer counts itself).
-TASK_REVISIONS = {"triangulation": 1, "tracking": 5, "horizon": 1, "vos": 1, "davos": 1}
+#: no longer counts itself; 6: a fifth pyramid level, searched only in frames large enough for it, so the graphs take
+#: and give five filters).
+TASK_REVISIONS = {"triangulation": 1, "tracking": 6, "horizon": 1, "vos": 1, "davos": 1}
 #: The command that writes each task's bundle (named in error messages).
 EXPORT_COMMANDS = {"triangulation": "export.triangulation", "tracking": "export.tracking_onnx",
                    "horizon": "export.horizon_onnx", "vos": "export.vos_onnx", "davos": "export.davos_onnx"}

@@ -1,11 +1,12 @@
 """Batched DCF point tracker (thesis 3.4, paper B): one small gray-pixel correlation filter per point and
 pyramid level, searched coarse to fine.
 
-Per frame: build a 4-level pyramid; from the coarsest level down, extract every point's patch at its current
-estimate (one gather for all points), correlate with that level's filter, find the peak (on the two finest
-levels weighted by a Gaussian prior around the coarser estimate) and add the scaled shift; the filters'
-regulariser grows with the frame's noise (estimated once per frame) against each patch's
-contrast (the noise counts the error of block coding, where a frame shows an 8 px codec grid), so frequencies that
+Per frame: build a 5-level pyramid (the fifth level searched only in frames of at least 672 px a side, where its
+image is large enough: :meth:`PointTracker._level_gate`); from the coarsest level searched down, extract every
+point's patch at its current estimate (one gather for all points), correlate with that level's filter, find the peak
+(on the two finest levels weighted by a Gaussian prior around the coarser estimate) and add the scaled shift; the
+filters' regulariser grows with the frame's noise (estimated once per frame) against each patch's contrast (the
+noise counts the error of block coding, where a frame shows an 8 px codec grid), so frequencies that
 hold only noise in a blurred, dark or compressed patch do not move the peak. Points that leave
 the image, that have no peak (level-0 PSR below a floor: an absolute one, lowered in a frame where every point's
 PSR is low, as in the dark) or whose peak is weak, both against the frame's
@@ -37,7 +38,8 @@ blurred by the previous frame's (:meth:`_streak_matched_step`), since a Gaussian
 about a pixel of scatter along it.
 
 Cost: the patches are small (default 31 px at level 0, which sets the accuracy, and 21 px, KLT's window, at the
-coarser levels; the coarsest bounds the largest motion at about 80 px per frame). Template and search patch both
+coarser levels; the fourth level's bounds the motion at about 40 px per frame, the fifth's, in large frames, about
+80). Template and search patch both
 carry the Hann window, so the correlation weights a pixel by the window's square, and where noise or compression
 limits the precision, the scatter of a weighted shift estimate (``sqrt(sum w^4) / sum w^2`` per axis) is 1.36 times
 that of KLT's uniform 21 px window for a 21 px patch and 1.13 times for a 31 px one. The filters keep only the
@@ -124,6 +126,8 @@ _PYRDOWN_NOISE_GAIN = (sum(t * t for t in _PYRDOWN_TAPS) / sum(_PYRDOWN_TAPS) **
 _SEARCH_SIGMA = 3.0  # px: the default displacement prior of the fine levels (PointTracker's search_sigma)
 _FINE_PATCH, _COARSE_PATCH = 31, 21  # px: default patch side at level 0 and at the coarser levels (patch_size)
 _FINE_NEWTON = 2  # default Newton steps at level 0 (newton_iterations); the coarser levels take the parabola
+_LEVELS, _MIN_LEVELS = 5, 4  # default pyramid levels, and those searched in every frame (levels, min_levels)
+_SIDE_PATCHES = 2  # a level beyond min_levels searches where its shorter side spans at least this many patches
 # default fractions of each level's frequencies the filters keep at level 0 and at the coarser levels (band)
 _FINE_BAND, _COARSE_BAND = 0.5, 0.7
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
@@ -317,10 +321,16 @@ class PointTracker(nn.Module):
 
     Args:
         method: ``ccot``, ``ccot_ff`` or ``mosse``.
-        levels: pyramid levels (coarse-to-fine search). patch_size: odd patch side (px of that level), one
+        levels: pyramid levels (coarse-to-fine search). min_levels: the levels searched in every frame; a level
+        beyond them searches only in frames large enough for it, where its image is at least two of its patches
+        on its shorter side (:meth:`_level_gate`; the default fifth level of 21 px from frames of 672 px up,
+        720p video and larger, the low-SNR twin's of 31 px from 992 px). A 21 px patch at the fourth level
+        bounds the motion at about 40 px a frame, which is little in a large frame; a fifth level doubles the
+        reach, but on a smaller image its patch sees most of the frame and, where the scene changes much, can
+        send every point of a frame astray (docs/results.md). patch_size: odd patch side (px of that level), one
         for all levels or one per level, finest first; None: 31 px at level 0, 21 px at the coarser levels. The
-        coarsest patch bounds the largest motion (about a quarter of its side, in coarsest-level pixels); the finer
-        levels only correct the coarser estimate, and level 0's sets the precision (the module docstring).
+        coarsest patch bounds the largest motion (about a quarter of its side, in coarsest-level pixels); the
+        finer levels only correct the coarser estimate, and level 0's sets the precision (the module docstring).
         sigma: label std in px of each level (default per method: 0.7, 0.7, 1.0). The label's spectrum weights the
         frequencies of the response. On a pure translation the 1 px label is slightly the more precise; where the
         patch deforms (rotation, scale, real video) a narrower one is, and on the real benchmark sets the
@@ -441,7 +451,8 @@ class PointTracker(nn.Module):
     def __init__(
         self,
         method: str = "ccot",
-        levels: int = 4,
+        levels: int = _LEVELS,
+        min_levels: int = _MIN_LEVELS,
         patch_size: int | tuple[int, ...] | None = None,
         sigma: float | None = None,
         eta: float | None = None,
@@ -507,7 +518,9 @@ class PointTracker(nn.Module):
             if not all(s >= 0 for s in self.first_step_sigmas):
                 raise InputError(f"first_step_sigma must be non-negative (0: free search) or None, "
                                  f"got {self.first_step_sigmas}")
-        self.method, self.levels = method, levels
+        if not 1 <= min_levels:
+            raise InputError(f"min_levels must be at least 1, got {min_levels}")
+        self.method, self.levels, self.min_levels = method, levels, min_levels
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         if turn_limit is not None and not turn_limit >= 0:
             raise InputError(f"turn_limit must be a turn >= 0 or None, got {turn_limit}")
@@ -825,8 +838,14 @@ class PointTracker(nn.Module):
         d = torch.zeros_like(positions)
         fine_weight = self._fine_weight(ratio)
         first = self._first_step(ratio, psr_mean)
-        spectra, centres = [], []
+        spectra, centres, gates = [], [], []
         for level in reversed(range(self.levels)):
+            gate = self._level_gate(pyramid[level], level)
+            gates.insert(0, gate)
+            if gate is False:  # a level the frame is too small for (eager): not searched, its filters kept
+                spectra.insert(0, None)
+                centres.insert(0, None)
+                continue
             centre = _level_centres(start + d, level)
             zr, zi, std = self._sample(pyramid[level], centre, level)
             spectrum = self._response(filters[level], zr, zi, self._noise_power(noise, std, level), level)
@@ -840,6 +859,8 @@ class PointTracker(nn.Module):
             step = 2**level * self._peak(spectrum, score, argmax, level)
             if level < min(_BLOCK_LEVELS, self.levels - 1):
                 step = step * fine_weight
+            if gate is not True:  # an exported graph: the level counts only in a frame large enough for it
+                step = torch.where(gate, step, torch.zeros_like(step))
             d = d + step
             spectra.insert(0, (zr, zi))
             centres.insert(0, centre)
@@ -886,9 +907,28 @@ class PointTracker(nn.Module):
         eta = torch.where(lost, torch.zeros_like(psr), rate.expand_as(psr))
         updated = [self._learn(filters[0], *sample, eta, 0)]
         for level in range(1, self.levels):
+            if spectra[level] is None:
+                updated.append(filters[level])
+                continue
             shift = _level_centres(target, level) - centres[level]
-            updated.append(self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level))
+            learned = self._learn(filters[level], *self._shift(*spectra[level], shift, level), eta, level)
+            # in an exported graph a level the frame is too small for keeps its filters, as in an eager step
+            updated.append(learned if gates[level] is True else torch.where(gates[level], learned, filters[level]))
         return positions, lost, psr, psr_mean, *updated
+
+    def _level_gate(self, image: Tensor, level: int) -> bool | Tensor:
+        """Whether ``level`` searches in a frame whose level image is ``image`` ``(1, 1, h, w)``: always for the first
+        ``min_levels``, beyond them where ``min(h, w)`` is at least ``_SIDE_PATCHES`` of the level's patch sides. A
+        bool from the shape in eager and compiled steps; in an exported graph a ``()`` bool tensor computed from the
+        image's shape, so the graph stays dynamic in the frame size: there the level is searched in every frame, and
+        where the gate is off its step counts as zero and its filters stay as they were, as in an eager step."""
+        if level < self.min_levels:
+            return True
+        least = _SIDE_PATCHES * self.sizes[level]
+        if not exporting():
+            return min(image.shape[-2:]) >= least
+        rows, columns = (torch.ones_like(line).sum() for line in (image[0, 0, :, 0], image[0, 0, 0, :]))
+        return torch.minimum(rows, columns) >= least
 
     @staticmethod
     def _origin(start: Tensor, moved: Tensor, lost: Tensor, back: Tensor) -> Tensor:

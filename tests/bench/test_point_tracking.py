@@ -273,6 +273,16 @@ def test_roundtrip_plays_the_frames_forward_and_back(tmp_path, capsys):
     later = point_tracking.roundtrip_dataset(tmp_path, 3, 50, start=2)  # frames 2, 3, 4, 3, 2
     for frame, t in zip(later.frames, [2, 3, 4, 3, 2], strict=True):
         np.testing.assert_array_equal(frame, cv2.imread(str(tmp_path / f"{t:05d}.png"), cv2.IMREAD_GRAYSCALE))
+    large = point_tracking.roundtrip_dataset(tmp_path, 3, 50, scale=2.5)  # frames 0, 1, 2, 1, 0 enlarged
+    for frame, t in zip(large.frames, [0, 1, 2, 1, 0], strict=True):
+        stored = cv2.imread(str(tmp_path / f"{t:05d}.png"), cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        enlarged = cv2.resize(stored, (350, 300), interpolation=cv2.INTER_CUBIC).round().clip(0, 255)
+        np.testing.assert_array_equal(frame, enlarged.astype(np.uint8))
+    for scale in (0.5, 9.0, float("nan")):
+        with pytest.raises(InputError, match="scale"):
+            point_tracking.roundtrip_dataset(tmp_path, 3, 50, scale=scale)
+    assert point_tracking.main([*argv, "--roundtrip-scale", "2"]) == 0
+    assert json.loads(capsys.readouterr().out)["roundtrip_scale"] == 2.0
     faster = point_tracking.roundtrip_dataset(tmp_path, 3, 50, stride=2)  # frames 0, 2, 4, 2, 0
     for frame, t in zip(faster.frames, [0, 2, 4, 2, 0], strict=True):
         np.testing.assert_array_equal(frame, cv2.imread(str(tmp_path / f"{t:05d}.png"), cv2.IMREAD_GRAYSCALE))
@@ -292,10 +302,10 @@ def test_tracker_settings_reach_the_dcf_trackers(capsys):
     """``--tracker`` sets PointTracker arguments (here one that changes the tracks); an unknown one is refused."""
     base = ["--synthetic", "--frames", "4", "--points", "80", "--methods", "ccot", "--repeats", "1", "--json"]
     runs = []
-    for extra in ([], ["--tracker", "patch_size=[31,15,15,15]", "noise_reg=0"]):
+    for extra in ([], ["--tracker", "patch_size=[31,15,15,15,15]", "noise_reg=0"]):
         assert point_tracking.main(base + extra) == 0
         runs.append(json.loads(capsys.readouterr().out))
-    assert runs[0]["tracker"] == {} and runs[1]["tracker"] == {"patch_size": [31, 15, 15, 15], "noise_reg": 0}
+    assert runs[0]["tracker"] == {} and runs[1]["tracker"] == {"patch_size": [31, 15, 15, 15, 15], "noise_reg": 0}
     epe = [r["datasets"]["synthetic"]["methods"]["ccot"]["epe_mean"] for r in runs]
     assert epe[0] != epe[1]
     assert point_tracking.main(base + ["--tracker", "colour=1"]) == 2

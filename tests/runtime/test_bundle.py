@@ -80,14 +80,17 @@ def test_graphs_of_another_revision_are_refused(bundle, tracking_bundle, tmp_pat
         Bundle(bundle, "triangulation")
     old_tracking = shutil.copytree(tracking_bundle, tmp_path / "tracking")
     _edit_manifest(old_tracking, lambda m: m.pop("revision"))  # written before the snr graph masked points itself
-    with pytest.raises(InputError, match="revision 1 tracking graphs; this runtime runs revision 5"):
+    with pytest.raises(InputError, match="revision 1 tracking graphs; this runtime runs revision 6"):
         Bundle(old_tracking, "tracking")
     _edit_manifest(old_tracking, lambda m: m.update(revision=2))  # written before the first-step retry's graphs
-    with pytest.raises(InputError, match="revision 2 tracking graphs; this runtime runs revision 5"):
+    with pytest.raises(InputError, match="revision 2 tracking graphs; this runtime runs revision 6"):
         Bundle(old_tracking, "tracking")
     _edit_manifest(old_tracking, lambda m: m.update(revision=3))  # written before the turn graph
-    with pytest.raises(InputError, match="revision 3 tracking graphs; this runtime runs revision 5"):
+    with pytest.raises(InputError, match="revision 3 tracking graphs; this runtime runs revision 6"):
         Bundle(old_tracking, "tracking")
     _edit_manifest(old_tracking, lambda m: m.update(revision=4))  # written before the turn graph counted the points
-    with pytest.raises(InputError, match="revision 4 tracking graphs; this runtime runs revision 5"):
+    with pytest.raises(InputError, match="revision 4 tracking graphs; this runtime runs revision 6"):
+        Bundle(old_tracking, "tracking")
+    _edit_manifest(old_tracking, lambda m: m.update(revision=5))  # written before the fifth pyramid level
+    with pytest.raises(InputError, match="revision 5 tracking graphs; this runtime runs revision 6"):
         Bundle(old_tracking, "tracking")

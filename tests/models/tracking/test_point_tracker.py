@@ -354,15 +354,18 @@ def test_pyramid_min_size_against_a_search_with_torch_padding_rule():
 
 
 def test_tracker_refuses_frames_below_its_minimum_and_tracks_at_it():
-    assert PointTracker("ccot").min_frame_size == 16  # the blur profile's 8 px a side after halving
-    assert PointTracker("ccot", blur_match=None).min_frame_size == pyramid_min_size(4) == 13
+    # the 5-level pyramid's: its fourth blurred level must be 4 px; 4 levels need the blur profile's 8 px a side
+    # after halving
+    assert PointTracker("ccot").min_frame_size == pyramid_min_size(5) == 25
+    assert PointTracker("ccot", levels=4).min_frame_size == 16
+    assert PointTracker("ccot", levels=4, blur_match=None).min_frame_size == pyramid_min_size(4) == 13
     img = _smooth_image(64, 64, 3)
     moved = _translate(img, 1.0, 0.0)
     tracker = PointTracker("ccot")
-    tracks, lost, _ = tracker.track([img[:16, :16], moved[:16, :16]], torch.tensor([[8.0, 8.0]], dtype=torch.float64))
+    tracks, lost, _ = tracker.track([img[:25, :25], moved[:25, :25]], torch.tensor([[12.0, 12.0]], dtype=torch.float64))
     assert tracks.shape == (2, 1, 2) and lost.shape == (2, 1)
-    with pytest.raises(InputError, match=r"\(15, 16\) px is too small"):
-        tracker.track([img[:15, :16], moved[:15, :16]], torch.tensor([[8.0, 8.0]], dtype=torch.float64))
+    with pytest.raises(InputError, match=r"\(24, 25\) px is too small"):
+        tracker.track([img[:24, :25], moved[:24, :25]], torch.tensor([[8.0, 8.0]], dtype=torch.float64))
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
@@ -381,10 +384,10 @@ def test_exported_pyramid_form_equals_the_eager_one(monkeypatch, dtype):
 
 def test_per_level_settings_are_checked():
     # the default band keeps round(0.5 * 15) = 8 frequencies of the 31 px level 0, round(0.7 * 10) = 7 of the 21 px
-    assert PointTracker("ccot").sizes == (31, 21, 21, 21) and PointTracker("ccot").bands == (8, 7, 7, 7)
+    assert PointTracker("ccot").sizes == (31, 21, 21, 21, 21) and PointTracker("ccot").bands == (8, 7, 7, 7, 7)
     assert PointTracker("ccot", levels=2, newton_iterations=2).bands == (8, 7)
     # the default Newton steps follow the number of levels: 2 at level 0, none at the coarser levels
-    assert PointTracker("ccot").newton == (2, 0, 0, 0) and PointTracker("ccot", levels=5).newton == (2, 0, 0, 0, 0)
+    assert PointTracker("ccot").newton == (2, 0, 0, 0, 0) and PointTracker("ccot", levels=4).newton == (2, 0, 0, 0)
     assert PointTracker("ccot", levels=1).newton == (2,) and PointTracker("mosse", levels=5).newton == (0,) * 5
     assert PointTracker("ccot", levels=3, patch_size=(21, 15, 25), newton_iterations=2).sizes == (21, 15, 25)
     with pytest.raises(InputError, match="one value per pyramid level"):
@@ -660,7 +663,7 @@ def test_default_label_tracks_a_rotating_scaling_patch_more_precisely_than_one_p
 
 
 def test_search_and_blur_settings_are_checked():
-    assert PointTracker("ccot").search_sigmas == (3.0, 3.0, 0.0, 0.0)
+    assert PointTracker("ccot").search_sigmas == (3.0, 3.0, 0.0, 0.0, 0.0)
     assert PointTracker("ccot", levels=2, patch_size=21, newton_iterations=2).search_sigmas == (3.0, 0.0)
     with pytest.raises(InputError, match="search_sigma"):
         PointTracker("ccot", search_sigma=-1.0)
@@ -855,8 +858,8 @@ def _noisy_sequence(noise: float, step: tuple[float, float] = (2.5, -1.5),
     return out, points, points + (frames - 1) * torch.tensor(step, dtype=torch.float64)
 
 
-_TWIN_BAND = (0.7, 0.7, 0.7, 0.7)  # the default twin's band fractions, finest level first
-_TWIN_FIRST = (2.0, 2.0, 0.0, 0.0)  # the default twin's first-step prior (px per level, finest first)
+_TWIN_BAND = (0.7,) * 5  # the default twin's band fractions, finest level first
+_TWIN_FIRST = (2.0, 2.0, 0.0, 0.0, 0.0)  # the default twin's first-step prior (px per level, finest first)
 _TWIN = dict(window="tukey", patch_size=31, band=_TWIN_BAND, low_snr=None, first_step_sigma=_TWIN_FIRST)
 
 
@@ -938,7 +941,7 @@ def test_the_low_snr_twin_keeps_every_other_setting():
              "streak_match", "block_limit", "block_psr_threshold", "compression_reg")
     assert {n: getattr(twin, n) for n in names} == {n: getattr(tracker, n) for n in names}
     assert twin.bands == (10, 9, 9)  # 0.7 of 15 (10.5, rounded to even) at level 0, 0.6 of 15 at the others
-    assert PointTracker(band=(0.9, 0.5, 0.5, 0.5)).low_snr_tracker.bands == (14, 8, 8, 8)  # 13.5 and 7.5, to even
+    assert PointTracker(band=(0.9, 0.5, 0.5, 0.5, 0.5)).low_snr_tracker.bands == (14, 8, 8, 8, 8)  # 13.5, 7.5: even
     torch.testing.assert_close(twin.label_1, tracker.label_0, rtol=0, atol=0)  # both 31 px, band 9, sigma 1.5
 
 
@@ -960,7 +963,7 @@ def test_the_first_step_prior_weights_new_points_in_frames_without_a_codec_grid(
     first-step prior, every other point the ``search_sigma`` one; a tracker without it, a frame whose grid was not
     measured, or (eager) a frame where no point takes it, weights all alike. The low-SNR twin gets 2 px on the
     levels where ``search_sigma`` weights."""
-    tracker = PointTracker(first_step_sigma=(2.0, 1.0, 0.0, 0.0))
+    tracker = PointTracker(first_step_sigma=(2.0, 1.0, 0.0, 0.0, 0.0))
     psr_mean = torch.tensor([math.inf, 4.0, math.inf])
     assert tracker._first_step(torch.tensor([1.02]), psr_mean).tolist() == [True, False, True]
     assert tracker._first_step(torch.tensor([1.5]), psr_mean).tolist() == [True, False, True]
@@ -973,7 +976,7 @@ def test_the_first_step_prior_weights_new_points_in_frames_without_a_codec_grid(
         assert weight.shape == (31 if level == 0 else 21, 3, 31 if level == 0 else 21)
         for point, sigma in zip((0, 1, 2), (sigmas[0], sigmas[1], sigmas[1]), strict=True):
             torch.testing.assert_close(weight[:, point : point + 1], displacement_prior(weight.shape[0], sigma))
-    assert PointTracker(search_sigma=(3.0, 0.0, 0.0, 0.0)).low_snr_tracker.first_step_sigmas == (2.0, 0.0, 0.0, 0.0)
+    assert PointTracker(search_sigma=(3.0, 0, 0, 0, 0)).low_snr_tracker.first_step_sigmas == (2.0, 0, 0, 0, 0)
     assert PointTracker().first_step_sigmas is None
     for value in (-1.0, (2.0, 2.0)):
         with pytest.raises(InputError, match="first_step_sigma"):
@@ -1244,3 +1247,45 @@ def test_a_turn_matched_step_tracks_a_fast_turning_camera_to_a_pixel(seed):
     assert within["matched"] >= 0.97 and within["memory"] <= 0.92, within
     with pytest.raises(InputError, match="turn_match"):
         PointTracker("ccot", turn_match=0.0)
+
+
+def test_the_fifth_level_reaches_twice_as_far_in_a_large_frame():
+    """A 704 px frame moved by (50, -45) px, beyond the fourth level's reach of about 40 px: the default tracker,
+    whose fifth level searches in frames of 672 px and more, puts every point within 0.1 px of the exact
+    translation; a 4-level tracker loses or misplaces many of them."""
+    image = _smooth_image(704, 704, 3)
+    moved = _translate(image, 50.0, -45.0)
+    ys, xs = torch.meshgrid(torch.arange(200.0, 500.0, 50), torch.arange(200.0, 500.0, 50), indexing="ij")
+    points = torch.stack([xs.flatten(), ys.flatten()], -1)
+    truth = points + torch.tensor([50.0, -45.0])
+    frames = [image.float(), moved.float()]
+    tracks, lost, _ = PointTracker("ccot").track(frames, points.float())
+    assert not lost[-1].any() and (tracks[-1] - truth).norm(dim=-1).max() < 0.1
+    tracks, lost, _ = PointTracker("ccot", levels=4).track(frames, points.float())
+    assert (~lost[-1] & ((tracks[-1] - truth).norm(dim=-1) < 0.5)).sum() < 30
+
+
+def test_the_fifth_level_searches_only_where_the_frame_is_large_enough(monkeypatch):
+    """A frame whose fifth-level image is under two 21 px patches on its shorter side (below 672 px) tracks exactly
+    as a 4-level tracker; the level's gate reads the level image's shape alike as a bool in eager steps and as a
+    bool tensor in an exported graph, and ``min_levels`` 5 searches it in every frame."""
+    from models.tracking import point_tracker
+
+    image = _smooth_image(240, 320, 4)
+    points = torch.tensor([[100.0, 90.0], [160.0, 120.0], [220.0, 150.0]])
+    frames = [image.float(), _translate(image, 3.5, -2.0).float()]
+    five, four = PointTracker("ccot"), PointTracker("ccot", levels=4)
+    for ours, ref in zip(five.track(frames, points), four.track(frames, points), strict=True):
+        torch.testing.assert_close(ours, ref, rtol=0, atol=0)
+    assert five.levels == 5 and five.min_levels == 4
+    sides = {(41, 80): False, (42, 42): True, (45, 80): True, (80, 41): False}
+    for (h, w), searched in sides.items():
+        assert five._level_gate(torch.zeros(1, 1, h, w), 4) is searched
+        assert five._level_gate(torch.zeros(1, 1, h, w), 3) is True
+        assert PointTracker("ccot", min_levels=5)._level_gate(torch.zeros(1, 1, h, w), 4) is True
+    monkeypatch.setattr(point_tracker, "exporting", lambda: True)
+    for (h, w), searched in sides.items():
+        gate = five._level_gate(torch.zeros(1, 1, h, w), 4)
+        assert isinstance(gate, torch.Tensor) and gate.dtype == torch.bool and bool(gate) is searched
+    with pytest.raises(InputError, match="min_levels"):
+        PointTracker("ccot", min_levels=0)
