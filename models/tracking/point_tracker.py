@@ -127,7 +127,9 @@ _SEARCH_SIGMA = 3.0  # px: the default displacement prior of the fine levels (Po
 _FINE_PATCH, _COARSE_PATCH = 31, 21  # px: default patch side at level 0 and at the coarser levels (patch_size)
 _FINE_NEWTON = 2  # default Newton steps at level 0 (newton_iterations); the coarser levels take the parabola
 _LEVELS, _MIN_LEVELS = 5, 4  # default pyramid levels, and those searched in every frame (levels, min_levels)
-_SIDE_PATCHES = 2  # a level beyond min_levels searches where its shorter side spans at least this many patches
+# px: the least shorter side of a level image beyond min_levels that the level searches (min_level_side): two of
+# the default 21 px coarse patches, the fifth level's from frames of 672 px a side
+_MIN_LEVEL_SIDE = 42
 # default fractions of each level's frequencies the filters keep at level 0 and at the coarser levels (band)
 _FINE_BAND, _COARSE_BAND = 0.5, 0.7
 _QUANTISATION_VAR = 1 / 12  # rounding to integer gray levels (8-bit frames): the least noise a level-0 pixel has
@@ -321,16 +323,16 @@ class PointTracker(nn.Module):
 
     Args:
         method: ``ccot``, ``ccot_ff`` or ``mosse``.
-        levels: pyramid levels (coarse-to-fine search). min_levels: the levels searched in every frame; a level
-        beyond them searches only in frames large enough for it, where its image is at least two of its patches
-        on its shorter side (:meth:`_level_gate`; the default fifth level of 21 px from frames of 672 px up,
-        720p video and larger, the low-SNR twin's of 31 px from 992 px). A 21 px patch at the fourth level
-        bounds the motion at about 40 px a frame, which is little in a large frame; a fifth level doubles the
-        reach, but on a smaller image its patch sees most of the frame and, where the scene changes much, can
-        send every point of a frame astray (docs/results.md). patch_size: odd patch side (px of that level), one
-        for all levels or one per level, finest first; None: 31 px at level 0, 21 px at the coarser levels. The
-        coarsest patch bounds the largest motion (about a quarter of its side, in coarsest-level pixels); the
-        finer levels only correct the coarser estimate, and level 0's sets the precision (the module docstring).
+        levels: pyramid levels (coarse-to-fine search). min_levels, min_level_side: the levels searched in every
+        frame, and the least shorter side (px) of a deeper level's image for that level to search
+        (:meth:`_level_gate`; the default fifth level from frames of 672 px a side, 720p video and larger). A 21
+        px patch at the fourth level bounds the motion at about 40 px a frame, which is little in a large frame;
+        a fifth level doubles the reach, but on a small image its patch sees most of the frame and, where the
+        scene changes much, can send every point of a frame astray (docs/results.md). patch_size: odd patch side
+        (px of that level), one for all levels or one per level, finest first; None: 31 px at level 0, 21 px at
+        the coarser levels. The coarsest patch bounds the largest motion (about a quarter of its side, in
+        coarsest-level pixels); the finer levels only correct the coarser estimate, and level 0's sets the
+        precision (the module docstring).
         sigma: label std in px of each level (default per method: 0.7, 0.7, 1.0). The label's spectrum weights the
         frequencies of the response. On a pure translation the 1 px label is slightly the more precise; where the
         patch deforms (rotation, scale, real video) a narrower one is, and on the real benchmark sets the
@@ -453,6 +455,7 @@ class PointTracker(nn.Module):
         method: str = "ccot",
         levels: int = _LEVELS,
         min_levels: int = _MIN_LEVELS,
+        min_level_side: int = _MIN_LEVEL_SIDE,
         patch_size: int | tuple[int, ...] | None = None,
         sigma: float | None = None,
         eta: float | None = None,
@@ -520,7 +523,9 @@ class PointTracker(nn.Module):
                                  f"got {self.first_step_sigmas}")
         if not 1 <= min_levels:
             raise InputError(f"min_levels must be at least 1, got {min_levels}")
-        self.method, self.levels, self.min_levels = method, levels, min_levels
+        if not min_level_side >= 1:
+            raise InputError(f"min_level_side must be a side of at least 1 px, got {min_level_side}")
+        self.method, self.levels, self.min_levels, self.min_level_side = method, levels, min_levels, min_level_side
         self.eta = DEFAULT_ETA[method] if eta is None else eta
         if turn_limit is not None and not turn_limit >= 0:
             raise InputError(f"turn_limit must be a turn >= 0 or None, got {turn_limit}")
@@ -917,18 +922,17 @@ class PointTracker(nn.Module):
         return positions, lost, psr, psr_mean, *updated
 
     def _level_gate(self, image: Tensor, level: int) -> bool | Tensor:
-        """Whether ``level`` searches in a frame whose level image is ``image`` ``(1, 1, h, w)``: always for the first
-        ``min_levels``, beyond them where ``min(h, w)`` is at least ``_SIDE_PATCHES`` of the level's patch sides. A
-        bool from the shape in eager and compiled steps; in an exported graph a ``()`` bool tensor computed from the
-        image's shape, so the graph stays dynamic in the frame size: there the level is searched in every frame, and
+        """Whether ``level`` searches in a frame whose level image is ``image`` ``(1, 1, h, w)``: always for the
+        first ``min_levels``, beyond them where ``min(h, w)`` is at least ``min_level_side``. A bool from the
+        shape in eager and compiled steps; in an exported graph a ``()`` bool tensor computed from the image's
+        shape, so the graph stays dynamic in the frame size: there the level is searched in every frame, and
         where the gate is off its step counts as zero and its filters stay as they were, as in an eager step."""
         if level < self.min_levels:
             return True
-        least = _SIDE_PATCHES * self.sizes[level]
         if not exporting():
-            return min(image.shape[-2:]) >= least
+            return min(image.shape[-2:]) >= self.min_level_side
         rows, columns = (torch.ones_like(line).sum() for line in (image[0, 0, :, 0], image[0, 0, 0, :]))
-        return torch.minimum(rows, columns) >= least
+        return torch.minimum(rows, columns) >= self.min_level_side
 
     @staticmethod
     def _origin(start: Tensor, moved: Tensor, lost: Tensor, back: Tensor) -> Tensor:

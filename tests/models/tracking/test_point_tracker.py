@@ -1266,9 +1266,10 @@ def test_the_fifth_level_reaches_twice_as_far_in_a_large_frame():
 
 
 def test_the_fifth_level_searches_only_where_the_frame_is_large_enough(monkeypatch):
-    """A frame whose fifth-level image is under two 21 px patches on its shorter side (below 672 px) tracks exactly
-    as a 4-level tracker; the level's gate reads the level image's shape alike as a bool in eager steps and as a
-    bool tensor in an exported graph, and ``min_levels`` 5 searches it in every frame."""
+    """A frame whose fifth-level image is under 42 px on its shorter side (below 672 px) tracks exactly as a
+    4-level tracker; the level's gate reads the level image's shape alike as a bool in eager steps and as a bool
+    tensor in an exported graph, ``min_levels`` 5 searches it in every frame, and the low-SNR twin has the same
+    gate."""
     from models.tracking import point_tracker
 
     image = _smooth_image(240, 320, 4)
@@ -1283,9 +1284,13 @@ def test_the_fifth_level_searches_only_where_the_frame_is_large_enough(monkeypat
         assert five._level_gate(torch.zeros(1, 1, h, w), 4) is searched
         assert five._level_gate(torch.zeros(1, 1, h, w), 3) is True
         assert PointTracker("ccot", min_levels=5)._level_gate(torch.zeros(1, 1, h, w), 4) is True
+    assert five.low_snr_tracker._level_gate(torch.zeros(1, 1, 42, 42), 4) is True  # its 31 px patches too
+    assert PointTracker("ccot", min_level_side=80)._level_gate(torch.zeros(1, 1, 45, 80), 4) is False
     monkeypatch.setattr(point_tracker, "exporting", lambda: True)
     for (h, w), searched in sides.items():
         gate = five._level_gate(torch.zeros(1, 1, h, w), 4)
         assert isinstance(gate, torch.Tensor) and gate.dtype == torch.bool and bool(gate) is searched
     with pytest.raises(InputError, match="min_levels"):
         PointTracker("ccot", min_levels=0)
+    with pytest.raises(InputError, match="min_level_side"):
+        PointTracker("ccot", min_level_side=0)
