@@ -36,6 +36,12 @@ Graphs (frame height and width and the number of points P dynamic; the pyramid i
   noise above the frame's, the runtime tracks the sequence again from the first frame on the low-SNR graphs, that
   step with that noise as ``noise_floor`` (:meth:`PointTracker._low_snr_retry`).
 
+- ``init_large.onnx``, ``step_large.onnx``, ``init_low_snr_large.onnx``, ``step_low_snr_large.onnx``: the same
+  graphs with every pyramid level (:func:`bundle_tracker`; the others have the ``min_levels`` levels that search
+  in every frame), for frames of at least ``input.large_min_side`` px a side (657 for the default fifth level), on
+  which the deeper levels search; inside the graphs a gate computed from the frame's shape decides that, as
+  :meth:`PointTracker._level_gate` does. ``input.levels`` and ``input.large_levels`` name the two depths.
+
 - ``turn.onnx``: ``start``, ``moved`` (P, 2) and ``tracked`` (P,) bool -> ``turn`` (1,) and ``similarity`` (2, 3):
   the turn of the tracked points' steps (0 where fewer than ``TURN_POINTS``, 10, are tracked) and the similarity
   fitted to them (:mod:`models.tracking.turn`). Beyond
@@ -257,25 +263,41 @@ def export_blur_graphs(folder: Path, tracker: PointTracker, height: int = 240, w
                     dynamic_shapes=({2: h, 3: w},))
 
 
-#: The bundle's graph exports, heaviest first (about 60, 60, 18, 9, 9 and 4 s at 96 x 128 in one process), so that
-#: a pool of workers ends together: name -> (exporter, on the low-SNR twin).
+#: The bundle's graph exports, heaviest first (about 60 s for each step, 18, 9 for each init, 9 and 4 s at 96 x 128
+#: in one process), so that a pool of workers ends together: name -> (exporter, on the low-SNR twin, with every
+#: pyramid level: the ``*_large`` graphs for frames large enough for the levels beyond ``min_levels``).
 GRAPH_JOBS = {
-    "step_low_snr.onnx": ("step", True),
-    "step.onnx": ("step", False),
-    "profile.onnx, relative_blur.onnx, streak.onnx": ("blur", False),
-    "init.onnx": ("init", False),
-    "init_low_snr.onnx": ("init", True),
-    "snr.onnx": ("snr", False),
-    "first_step_noise.onnx": ("noise", False),
-    "turn.onnx": ("turn", False),
+    "step_low_snr_large.onnx": ("step", True, True),
+    "step_large.onnx": ("step", False, True),
+    "step_low_snr.onnx": ("step", True, False),
+    "step.onnx": ("step", False, False),
+    "profile.onnx, relative_blur.onnx, streak.onnx": ("blur", False, False),
+    "init_large.onnx": ("init", False, True),
+    "init_low_snr_large.onnx": ("init", True, True),
+    "init.onnx": ("init", False, False),
+    "init_low_snr.onnx": ("init", True, False),
+    "snr.onnx": ("snr", False, False),
+    "first_step_noise.onnx": ("noise", False, False),
+    "turn.onnx": ("turn", False, False),
 }
 
 
+def bundle_tracker(method: str, large: bool = False) -> PointTracker:
+    """The tracker whose graphs the bundle holds: ``PointTracker(method)`` with only its ``min_levels`` levels, those
+    every frame searches, or (``large``) with all of them. On a frame smaller than its ``full_depth_side`` the two
+    track alike (the deeper levels do not search there), and the smaller graphs spare the runtime the deeper
+    levels' work, which an exported graph, gated by the frame's shape, would do in every frame."""
+    tracker = PointTracker(method)
+    if not large:
+        tracker = PointTracker(method, levels=min(tracker.levels, tracker.min_levels))
+    return tracker.eval()
+
+
 def export_graph(name: str, folder: Path, method: str, height: int, width: int) -> None:
-    """Export the bundle graph ``name`` (a key of :data:`GRAPH_JOBS`) of ``PointTracker(method)`` into ``folder``.
+    """Export the bundle graph ``name`` (a key of :data:`GRAPH_JOBS`) of :func:`bundle_tracker` into ``folder``.
     A module-level function, so that a pool's worker process can run it."""
-    kind, twin = GRAPH_JOBS[name]
-    tracker = PointTracker(method).eval()
+    kind, twin, large = GRAPH_JOBS[name]
+    tracker = bundle_tracker(method, large)
     tracker = tracker.low_snr_tracker if twin else tracker
     if kind == "step":
         export_tracking_step(folder / name, tracker, height, width, floor=twin)
@@ -303,19 +325,20 @@ def export_bundle(out: str | Path, method: str = "ccot", height: int = 240, widt
                   workers: int | None = None) -> Path:
     """Write the tracking bundle of ``PointTracker(method)`` (``init.onnx``, ``step.onnx``, ``profile.onnx``,
     ``relative_blur.onnx``, ``streak.onnx``, ``snr.onnx``, ``init_low_snr.onnx``, ``step_low_snr.onnx``,
-    ``first_step_noise.onnx``, ``turn.onnx``, ``bundle.json``), its graphs exported by ``workers`` processes
-    (:func:`export_graphs`)."""
+    ``first_step_noise.onnx``, ``turn.onnx``, the four ``*_large.onnx``, ``bundle.json``), its graphs exported by
+    ``workers`` processes (:func:`export_graphs`)."""
     if method not in METHODS:
         raise InputError(f"unknown tracking method {method!r}; choose one of {', '.join(METHODS)}")
     if not (MIN_SIZE <= height <= MAX_SIZE and MIN_SIZE <= width <= MAX_SIZE):
         raise InputError(f"--height and --width must lie in [{MIN_SIZE}, {MAX_SIZE}], got {height} x {width}")
-    tracker = PointTracker(method).eval()
+    tracker, large = bundle_tracker(method), bundle_tracker(method, large=True)
     with staged_bundle(out) as folder:
         export_graphs(folder, method, height, width, workers)
         write_manifest(
             folder, "tracking", OPSET,
             input={"frame": "(1, 1, H, W) gray float32 in [0, 255]", "min_size": MIN_SIZE, "max_size": MAX_SIZE,
-                   "max_points": MAX_POINTS, "levels": tracker.levels},
+                   "max_points": MAX_POINTS, "levels": tracker.levels, "large_levels": large.levels,
+                   "large_min_side": large.full_depth_side},
             normalisation={"gray": "cv2.IMREAD_GRAYSCALE", "scale": 1.0},
             thresholds={"psr_threshold": tracker.psr_threshold, "floor_relative": tracker.floor_relative,
                         "psr_relative": tracker.psr_relative,

@@ -33,7 +33,7 @@ VERSION = 1
 TASK_GRAPHS = {
     "triangulation": ("dogleg_start", "dogleg_start_shared", "dogleg_step"),
     "tracking": ("init", "step", "profile", "relative_blur", "streak", "snr", "init_low_snr", "step_low_snr",
-                 "first_step_noise", "turn"),
+                 "first_step_noise", "turn", "init_large", "step_large", "init_low_snr_large", "step_low_snr_large"),
     "horizon": ("finder", "level", "segmenter", "matcher"),
     "vos": ("frame", "features", "init", "insert", "update"),
     "davos": ("features", "frame", "encode", "insert", "fit_init", "fit_update"),
@@ -42,8 +42,8 @@ TASK_GRAPHS = {
 #: 2: the ``snr`` graph leaves out the points outside the frame itself, so the runtime no longer filters them; 3: the
 #: ``first_step_noise`` graph and the ``noise_floor`` input of ``step_low_snr``; 4: the ``turn`` graph and the
 #: ``turn_match`` threshold; 5: the ``turn`` graph reads 0 where fewer than 10 points are tracked, which the runtime
-#: no longer counts itself; 6: a fifth pyramid level, searched only in frames large enough for it, so the graphs take
-#: and give five filters).
+#: no longer counts itself; 6: the ``*_large`` graphs of five pyramid levels for frames large enough for the fifth,
+#: and the ``large_levels`` and ``large_min_side`` entries of the manifest's ``input``).
 TASK_REVISIONS = {"triangulation": 1, "tracking": 6, "horizon": 1, "vos": 1, "davos": 1}
 #: The command that writes each task's bundle (named in error messages).
 EXPORT_COMMANDS = {"triangulation": "export.triangulation", "tracking": "export.tracking_onnx",

@@ -16,12 +16,13 @@ points (those inside it) with a median signal-to-noise ratio below the bundle's 
 runs on the ``init_low_snr`` and ``step_low_snr`` graphs (``PointTracker.init``'s low-SNR twin); where the first
 step's PSRs are low and the ``first_step_noise`` graph reads its residuals as noise that the frame's estimate
 under-read, that step runs again on them from the first frame, with the noise it read as the frame's least noise
-(``PointTracker._low_snr_retry``). Where the ``turn`` graph reads the tracked points' steps as a camera turn
-beyond the bundle's ``turn_match``, the step runs again from the previous frame warped by the similarity fitted to
-them (``cv2.warpAffine``; ``PointTracker._turn_matched_step``); where a retried first step turns, the usual graphs
-track it again so, from the turn the low-SNR step gave, and the retry decides again. The tracks
-file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P), ``psr`` (T, P), the start
-``points``, ``method`` and ``frames``.
+(``PointTracker._low_snr_retry``). Frames of at least the bundle's ``large_min_side`` px a side run on the
+``*_large`` graphs, with every pyramid level (the fifth searches only in such frames). Where the ``turn`` graph
+reads the tracked points' steps as a camera turn beyond the bundle's ``turn_match``, the step runs again from the
+previous frame warped by the similarity fitted to them (``cv2.warpAffine``; ``PointTracker._turn_matched_step``);
+where a retried first step turns, the usual graphs track it again so, from the turn the low-SNR step gave, and the
+retry decides again. The tracks file holds what ``infer.py track`` writes: ``tracks`` (T, P, 2), ``lost`` (T, P),
+``psr`` (T, P), the start ``points``, ``method`` and ``frames``.
 """
 
 from __future__ import annotations
@@ -84,11 +85,15 @@ class OnnxPointTracker:
         self.method = self.bundle.section("settings")["method"]
         size = self.bundle.section("input")
         self.min_size, self.max_size = int(size["min_size"]), int(size["max_size"])
+        # frames of at least large_min_side px a side run on the *_large graphs, whose deeper levels search there
+        self.large_min_side = int(size["large_min_side"])
+        self.large = False
         self.init_graph, self.step_graph = self.bundle.graph("init"), self.bundle.graph("step")
         thresholds = self.bundle.section("thresholds")
         self.low_snr = thresholds.get("low_snr")
         self.snr_graph = self.bundle.graph("snr") if self.low_snr is not None else None
-        self._graph_pairs = {False: (self.init_graph, self.step_graph)}  # the low-SNR pair is loaded when needed
+        # (low SNR, large) -> (init, step); the other pairs are loaded when needed
+        self._graph_pairs = {(False, False): (self.init_graph, self.step_graph)}
         self.low_snr_psr, self.low_snr_residual = thresholds.get("low_snr_psr"), thresholds.get("low_snr_residual")
         retry = self.low_snr is not None and self.low_snr_psr is not None
         self.noise_graph = self.bundle.graph("first_step_noise") if retry else None
@@ -125,6 +130,7 @@ class OnnxPointTracker:
         for t, frame in enumerate(progress_line(frames, f"track {self.method} (onnxruntime)", enabled=progress)):
             image = self._frame(frame, t)
             if previous is None:
+                self.large = min(image.shape[2:]) >= self.large_min_side
                 self._use_graphs(self._low_snr(image, points))
                 state = self._start(image, points)
             else:
@@ -234,10 +240,13 @@ class OnnxPointTracker:
         return self.low_snr is not None and float(self.snr_graph(image, points)[0]) < self.low_snr
 
     def _graphs(self, low_snr: bool) -> tuple:
-        """The init and step graphs of the tracker (``low_snr`` False) or of its low-SNR twin, each loaded once."""
-        if low_snr not in self._graph_pairs:
-            self._graph_pairs[low_snr] = (self.bundle.graph("init_low_snr"), self.bundle.graph("step_low_snr"))
-        return self._graph_pairs[low_snr]
+        """The init and step graphs of the tracker (``low_snr`` False) or of its low-SNR twin, with every pyramid
+        level where the sequence's frames are large enough for them (``large``), each loaded once."""
+        key = (low_snr, self.large)
+        if key not in self._graph_pairs:
+            suffix = "_low_snr" * low_snr + "_large" * self.large
+            self._graph_pairs[key] = (self.bundle.graph(f"init{suffix}"), self.bundle.graph(f"step{suffix}"))
+        return self._graph_pairs[key]
 
     def _retrained(self, image: np.ndarray, positions: np.ndarray, flags: np.ndarray,
                    filters: list) -> tuple[np.ndarray, list]:

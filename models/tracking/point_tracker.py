@@ -1,7 +1,7 @@
 """Batched DCF point tracker (thesis 3.4, paper B): one small gray-pixel correlation filter per point and
 pyramid level, searched coarse to fine.
 
-Per frame: build a 5-level pyramid (the fifth level searched only in frames of at least 672 px a side, where its
+Per frame: build a 5-level pyramid (the fifth level searched only in frames of at least 657 px a side, where its
 image is large enough: :meth:`PointTracker._level_gate`); from the coarsest level searched down, extract every
 point's patch at its current estimate (one gather for all points), correlate with that level's filter, find the peak
 (on the two finest levels weighted by a Gaussian prior around the coarser estimate) and add the scaled shift; the
@@ -128,7 +128,7 @@ _FINE_PATCH, _COARSE_PATCH = 31, 21  # px: default patch side at level 0 and at 
 _FINE_NEWTON = 2  # default Newton steps at level 0 (newton_iterations); the coarser levels take the parabola
 _LEVELS, _MIN_LEVELS = 5, 4  # default pyramid levels, and those searched in every frame (levels, min_levels)
 # px: the least shorter side of a level image beyond min_levels that the level searches (min_level_side): two of
-# the default 21 px coarse patches, the fifth level's from frames of 672 px a side
+# the default 21 px coarse patches, the fifth level's from frames of 657 px a side
 _MIN_LEVEL_SIDE = 42
 # default fractions of each level's frequencies the filters keep at level 0 and at the coarser levels (band)
 _FINE_BAND, _COARSE_BAND = 0.5, 0.7
@@ -325,7 +325,7 @@ class PointTracker(nn.Module):
         method: ``ccot``, ``ccot_ff`` or ``mosse``.
         levels: pyramid levels (coarse-to-fine search). min_levels, min_level_side: the levels searched in every
         frame, and the least shorter side (px) of a deeper level's image for that level to search
-        (:meth:`_level_gate`; the default fifth level from frames of 672 px a side, 720p video and larger). A 21
+        (:meth:`_level_gate`; the default fifth level from frames of 657 px a side, 720p video and larger). A 21
         px patch at the fourth level bounds the motion at about 40 px a frame, which is little in a large frame;
         a fifth level doubles the reach, but on a small image its patch sees most of the frame and, where the
         scene changes much, can send every point of a frame astray (docs/results.md). patch_size: odd patch side
@@ -920,6 +920,15 @@ class PointTracker(nn.Module):
             # in an exported graph a level the frame is too small for keeps its filters, as in an eager step
             updated.append(learned if gates[level] is True else torch.where(gates[level], learned, filters[level]))
         return positions, lost, psr, psr_mean, *updated
+
+    @property
+    def full_depth_side(self) -> int:
+        """The least shorter frame side (px) at which every level searches: level ``l``'s image has ``ceil(n /
+        2^l)`` px of a frame's ``n`` (:func:`image_pyramid`), so the deepest needs ``(min_level_side - 1) 2^(L - 1) +
+        1`` (657 px for the default 5 levels); the frame side itself where no level is gated."""
+        if self.levels <= self.min_levels:
+            return 1
+        return (self.min_level_side - 1) * 2 ** (self.levels - 1) + 1
 
     def _level_gate(self, image: Tensor, level: int) -> bool | Tensor:
         """Whether ``level`` searches in a frame whose level image is ``image`` ``(1, 1, h, w)``: always for the

@@ -12,20 +12,27 @@ import torch
 
 from core.errors import InputError
 from core.streak import streak_blur
-from export.tracking_onnx import GRAPH_JOBS, example_inputs, export_bundle, export_graphs, parity
+from export.tracking_onnx import GRAPH_JOBS, bundle_tracker, example_inputs, export_bundle, export_graphs, parity
 from models.tracking import PointTracker
 from models.tracking.motion_blur import motion_blur_streak
+from models.tracking.point_tracker import image_pyramid
 from models.tracking.turn import TURN_POINTS, camera_turn, fit_similarity
 from runtime.bundle import Bundle
 
 pytestmark = pytest.mark.slow  # ONNX export
 
 
-def test_step_and_init_graphs_match_pytorch(tracking_bundle) -> None:
+@pytest.mark.parametrize("large", [False, True])
+def test_step_and_init_graphs_match_pytorch(tracking_bundle, large) -> None:
+    """The 4-level graphs and the ``*_large`` graphs of every level against their trackers, also (``*_large``) at a
+    frame large enough for the fifth level (its gate on, checked) and at smaller ones (off: its filters kept)."""
     bundle = Bundle(tracking_bundle, "tracking")
-    step, init = bundle.graph("step"), bundle.graph("init")
-    tracker = PointTracker("ccot").eval()
-    for height, width, points in ((96, 128, 8), (120, 176, 40)):
+    suffix = "_large" * large
+    step, init = bundle.graph(f"step{suffix}"), bundle.graph(f"init{suffix}")
+    tracker = bundle_tracker("ccot", large)
+    assert tracker.levels == (5 if large else 4) and bundle.section("input")["large_min_side"] == 657
+    sizes = ((96, 128, 8), (120, 176, 40)) + (((672, 704, 20),) if large else ())
+    for height, width, points in sizes:
         args = example_inputs(tracker, height, width, points, seed=3)
         with torch.no_grad():
             ref = tracker(*args)
@@ -38,6 +45,10 @@ def test_step_and_init_graphs_match_pytorch(tracking_bundle) -> None:
         got = init(args[1].numpy(), args[2].numpy())
         for a, b in zip(got[4:], state.filters, strict=True):
             np.testing.assert_allclose(a, b.numpy(), rtol=1e-4, atol=1e-4 * float(b.abs().max()))
+        if large:  # the fifth level searched (and learnt) only in the large frame
+            fifth = tracker._level_gate(image_pyramid(args[0], 5)[4], 4)
+            assert fifth is (min(height, width) >= tracker.full_depth_side)
+            assert np.array_equal(out[-1], args[-1].numpy()) is not fifth
     assert bundle.section("settings")["method"] == "ccot" and bundle.section("thresholds")["psr_threshold"] == 2.5
 
 
@@ -81,7 +92,7 @@ def test_first_step_noise_graph_and_floored_step_match_pytorch(tracking_bundle) 
     them; with every point lost the residual SNR and noise read inf."""
     bundle = Bundle(tracking_bundle, "tracking")
     graph, floored = bundle.graph("first_step_noise"), bundle.graph("step_low_snr")
-    tracker = PointTracker("ccot").eval()
+    tracker = bundle_tracker("ccot")
     twin = tracker.low_snr_tracker
     for height, width, points in ((96, 128, 8), (150, 200, 41)):
         frame, previous, positions, lost, _, *filters = example_inputs(tracker, height, width, points, seed=6)
@@ -164,5 +175,6 @@ def test_the_bundle_holds_every_graph_job(tracking_bundle) -> None:
     """The parallel export (the fixture's default: one worker per core) wrote each job's graphs."""
     names = {name.strip() for job in GRAPH_JOBS for name in job.split(",")}
     assert names == {"init.onnx", "step.onnx", "profile.onnx", "relative_blur.onnx", "streak.onnx", "snr.onnx",
-                     "init_low_snr.onnx", "step_low_snr.onnx", "first_step_noise.onnx", "turn.onnx"}
+                     "init_low_snr.onnx", "step_low_snr.onnx", "first_step_noise.onnx", "turn.onnx",
+                     "init_large.onnx", "step_large.onnx", "init_low_snr_large.onnx", "step_low_snr_large.onnx"}
     assert names <= {path.name for path in tracking_bundle.iterdir()}

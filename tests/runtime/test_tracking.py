@@ -262,13 +262,17 @@ def test_a_fast_turning_camera_is_turn_matched_as_in_pytorch(tracking_bundle) ->
 
 
 def test_a_large_frame_searches_the_fifth_level_as_in_pytorch(tracking_bundle) -> None:
-    """A 704 px frame moved by (50, -45) px: the step graph searches the fifth level where PyTorch does (its image
-    is large enough, checked) and tracks alike, every point home."""
+    """A 704 px frame moved by (50, -45) px: the runtime takes the ``*_large`` graphs, whose fifth level searches
+    where PyTorch's does (its image is large enough, checked), and tracks alike, every point home; a smaller frame
+    takes the 4-level graphs."""
     image = _smooth_image(704, 704, 3)
     images = [image.float().numpy(), _translate(image, 50.0, -45.0).float().numpy()]
     tracker = PointTracker("ccot")
     assert tracker._level_gate(torch.zeros(1, 1, 44, 44), 4) is True  # the fifth-level image of a 704 px frame
     start = np.random.default_rng(5).uniform([200, 200], [500, 500], (20, 2))
     _assert_tracks_as_pytorch(tracking_bundle, images, start, tracker)
-    tracks, lost, _ = OnnxPointTracker(tracking_bundle, threads=1).track(images, start)
-    assert not lost[-1].any() and np.abs(tracks[-1] - (start + [50.0, -45.0])).max() < 0.1
+    runtime = OnnxPointTracker(tracking_bundle, threads=1)
+    tracks, lost, _ = runtime.track(images, start)
+    assert runtime.large and not lost[-1].any() and np.abs(tracks[-1] - (start + [50.0, -45.0])).max() < 0.1
+    runtime.track([image[:656].float().numpy() for image in (image, _translate(image, 2.0, 1.0))], start - 100)
+    assert not runtime.large  # 656 px: one short of the bundle's large_min_side

@@ -1251,7 +1251,7 @@ def test_a_turn_matched_step_tracks_a_fast_turning_camera_to_a_pixel(seed):
 
 def test_the_fifth_level_reaches_twice_as_far_in_a_large_frame():
     """A 704 px frame moved by (50, -45) px, beyond the fourth level's reach of about 40 px: the default tracker,
-    whose fifth level searches in frames of 672 px and more, puts every point within 0.1 px of the exact
+    whose fifth level searches in frames of 657 px and more, puts every point within 0.1 px of the exact
     translation; a 4-level tracker loses or misplaces many of them."""
     image = _smooth_image(704, 704, 3)
     moved = _translate(image, 50.0, -45.0)
@@ -1266,7 +1266,7 @@ def test_the_fifth_level_reaches_twice_as_far_in_a_large_frame():
 
 
 def test_the_fifth_level_searches_only_where_the_frame_is_large_enough(monkeypatch):
-    """A frame whose fifth-level image is under 42 px on its shorter side (below 672 px) tracks exactly as a
+    """A frame whose fifth-level image is under 42 px on its shorter side (below 657 px) tracks exactly as a
     4-level tracker; the level's gate reads the level image's shape alike as a bool in eager steps and as a bool
     tensor in an exported graph, ``min_levels`` 5 searches it in every frame, and the low-SNR twin has the same
     gate."""
