@@ -136,38 +136,14 @@ def test_homography_rows_per_image_and_condition(tmp_path, capsys):
     assert "missing.png" in capsys.readouterr().err  # a clear error, no traceback
 
 
-def test_homography_geometry_reaches_the_sequences(tmp_path, capsys):
-    """``--homography-geometry 3``: the rows' truth is that of the generator's sequence at 3 times the rotation,
-    scale change and tilt (built here independently), the JSON records the multiplier, and a negative one is
-    refused naming the image."""
-    from core.frames import read_frame_gray
-    from data.flow import homography_sequence
-
-    rng = np.random.default_rng(1)
-    texture = cv2.GaussianBlur(rng.normal(128, 40, (96, 128)), (0, 0), 1.5).clip(0, 255).astype(np.uint8)
-    image = tmp_path / "img.png"
-    cv2.imwrite(str(image), texture)
-    argv = ["--homography", str(image), "--homography-conditions", "none", "--points", "30", "--seed", "2"]
-    datasets, _ = point_tracking.build_datasets(point_tracking.build_parser().parse_args(
-        [*argv, "--homography-geometry", "3"]))
-    data = datasets[f"homography_none_{tmp_path.name}_img"]
-    seq = homography_sequence(read_frame_gray(image), "none", 6, 2, geometry=3.0)
-    tracks, valid = seq.track(data.points)
-    np.testing.assert_array_equal(data.truth, tracks[-1])
-    np.testing.assert_array_equal(data.valid, valid[-1])
-    plain = homography_sequence(read_frame_gray(image), "none", 6, 2).track(data.points)[0][-1]
-    assert np.abs(plain - tracks[-1]).max() > 1.0  # the multiplier moved the truth
-    assert point_tracking.main([*argv, "--homography-geometry", "3", "--methods", "klt", "--repeats", "1",
-                                "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["homography_geometry"] == 3.0
-    assert point_tracking.main([*argv, "--homography-geometry", "-1", "--json"]) == 2
-    err = capsys.readouterr().err
-    assert "img.png" in err and "geometry multiplier" in err
-
-
-def test_homography_step_reaches_the_sequences(tmp_path, capsys):
-    """``--homography-step 20``: the rows' truth is that of the generator's sequence with steps of up to 20 px
-    (built here independently), the JSON records the step, and a negative one is refused naming the image."""
+@pytest.mark.parametrize(("option", "value", "moved", "error"), [
+    ("--homography-geometry", 3.0, 1.0, "geometry multiplier"),  # 3 times the rotation, scale change and tilt
+    ("--homography-step", 20.0, 5.0, "translation step"),  # steps of up to 20 px per axis
+])
+def test_homography_motion_options_reach_the_sequences(tmp_path, capsys, option, value, moved, error):
+    """``--homography-geometry`` and ``--homography-step``: the rows' truth is that of the generator's sequence
+    with that argument (built here independently), which moves it by more than ``moved`` px from the default
+    sequence's; the JSON records the value, and a negative one is refused naming the image."""
     from core.frames import read_frame_gray
     from data.flow import homography_sequence
 
@@ -176,20 +152,19 @@ def test_homography_step_reaches_the_sequences(tmp_path, capsys):
     image = tmp_path / "img.png"
     cv2.imwrite(str(image), texture)
     argv = ["--homography", str(image), "--homography-conditions", "none", "--points", "30", "--seed", "2"]
-    datasets, _ = point_tracking.build_datasets(point_tracking.build_parser().parse_args(
-        [*argv, "--homography-step", "20"]))
+    datasets, _ = point_tracking.build_datasets(point_tracking.build_parser().parse_args([*argv, option, str(value)]))
     data = datasets[f"homography_none_{tmp_path.name}_img"]
-    tracks, valid = homography_sequence(read_frame_gray(image), "none", 6, 2, step=20.0).track(data.points)
+    keyword = option.removeprefix("--homography-")
+    tracks, valid = homography_sequence(read_frame_gray(image), "none", 6, 2, **{keyword: value}).track(data.points)
     np.testing.assert_array_equal(data.truth, tracks[-1])
     np.testing.assert_array_equal(data.valid, valid[-1])
     plain = homography_sequence(read_frame_gray(image), "none", 6, 2).track(data.points)[0][-1]
-    assert np.abs(plain - tracks[-1]).max() > 5.0  # the larger steps moved the truth
-    assert point_tracking.main([*argv, "--homography-step", "20", "--methods", "klt", "--repeats", "1",
-                                "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["homography_step"] == 20.0
-    assert point_tracking.main([*argv, "--homography-step", "-1", "--json"]) == 2
+    assert np.abs(plain - tracks[-1]).max() > moved
+    assert point_tracking.main([*argv, option, str(value), "--methods", "klt", "--repeats", "1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)[f"homography_{keyword}"] == value
+    assert point_tracking.main([*argv, option, "-1", "--json"]) == 2
     err = capsys.readouterr().err
-    assert "img.png" in err and "translation step" in err
+    assert "img.png" in err and error in err
 
 
 def test_homography_folder_rows_match_the_generated_sequence(tmp_path, capsys):
