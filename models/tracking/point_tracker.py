@@ -39,25 +39,24 @@ about a pixel of scatter along it.
 
 Cost: the patches are small (default 31 px at level 0, which sets the accuracy, and 21 px, KLT's window, at the
 coarser levels; the fourth level's bounds the motion at about 40 px per frame, the fifth's, in large frames, about
-80). Template and search patch both
-carry the Hann window, so the correlation weights a pixel by the window's square, and where noise or compression
-limits the precision, the scatter of a weighted shift estimate (``sqrt(sum w^4) / sum w^2`` per axis) is 1.36 times
-that of KLT's uniform 21 px window for a 21 px patch and 1.13 times for a 31 px one. The filters keep only the
-lower frequencies (half of level 0's, 0.7 of the coarser levels'; band-limited, as in C-COT) and their DFTs are
-real matrix products (:class:`~models.dcf.dft.RealDft2`) with the window and the spline interpolation folded in;
-Newton refinement on the Fourier series runs where it sets the output (level 0), the coarser levels take the grid
-peak refined by a parabola. A sequence whose first frame is noisy (its points' median patch-to-noise variance ratio
-below ``low_snr``: dark, noisy or heavily compressed video) goes to a low-SNR twin of the tracker with Tukey
-windows (flat over the middle half: 0.94 times KLT's scatter per axis at 31 px), 31 px patches at every level and
-at least 0.7 of level 0's frequencies (the noise regulariser already mutes those that hold only noise); on clean
-frames the Hann window is the more precise (a real scene's patch deforms and is occluded first at its border). A
-sequence whose first step has weak peaks and residuals that show noise the first frame's estimate under-read (dark
-video stored at a high JPEG quality, where the codec thinned the noise's finest differences) goes to the twin after
-that step, which is tracked again (:meth:`PointTracker._low_snr_retry`).
-Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``,
-so that each transform is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is
-applied to the spectrum (the mean as a multiple of the window's spectrum), so the pixel-sized arrays are only read,
-by two reductions and the transform.
+80). Template and search patch both carry the Hann window, so the correlation weights a pixel by the window's
+square, and where noise or compression limits the precision, the scatter of a weighted shift estimate (``sqrt(sum
+w^4) / sum w^2`` per axis) is 1.36 times that of KLT's uniform 21 px window for a 21 px patch and 1.13 times for a
+31 px one. The filters keep only the lower frequencies (half of level 0's, 0.7 of the coarser levels'; band-limited,
+as in C-COT) and their DFTs are real matrix products (:class:`~models.dcf.dft.RealDft2`) with the window and the
+spline interpolation folded in; Newton refinement on the Fourier series runs where it sets the output (level 0), the
+coarser levels take the grid peak refined by a parabola. A sequence whose first frame is noisy (its points' median
+patch-to-noise variance ratio below ``low_snr``: dark, noisy or heavily compressed video) goes to a low-SNR twin of
+the tracker with Tukey windows (flat over the middle half: 0.94 times KLT's scatter per axis at 31 px), 31 px
+patches at every level and at least 0.7 of level 0's frequencies (the noise regulariser already mutes those that
+hold only noise); on clean frames the Hann window is the more precise (a real scene's patch deforms and is occluded
+first at its border). A sequence whose first step has weak peaks and residuals that show noise the first frame's
+estimate under-read (dark video stored at a high JPEG quality, where the codec thinned the noise's finest
+differences) goes to the twin after that step, which is tracked again (:meth:`PointTracker._low_snr_retry`).
+Patches, spectra, filters and responses are stored point-interleaved, ``(rows, P, columns)``, so that each transform
+is one large matrix product per axis; the patch normalisation (zero mean, unit variance) is applied to the spectrum
+(the mean as a multiple of the window's spectrum), so the pixel-sized arrays are only read, by two reductions and
+the transform.
 
 Variants: ``ccot`` (continuous filter, exponentially decaying sample weights = a sample memory), ``ccot_ff``
 (continuous filter retrained from the newest sample only, ``eta = 1``) and ``mosse`` (grid peak plus parabola
@@ -925,7 +924,7 @@ class PointTracker(nn.Module):
     def full_depth_side(self) -> int:
         """The least shorter frame side (px) at which every level searches: level ``l``'s image has ``ceil(n /
         2^l)`` px of a frame's ``n`` (:func:`image_pyramid`), so the deepest needs ``(min_level_side - 1) 2^(L - 1) +
-        1`` (657 px for the default 5 levels); the frame side itself where no level is gated."""
+        1`` (657 px for the default 5 levels); 1 where no level is gated."""
         if self.levels <= self.min_levels:
             return 1
         return (self.min_level_side - 1) * 2 ** (self.levels - 1) + 1

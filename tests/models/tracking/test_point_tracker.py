@@ -1278,7 +1278,11 @@ def test_the_fifth_level_searches_only_where_the_frame_is_large_enough(monkeypat
     five, four = PointTracker("ccot"), PointTracker("ccot", levels=4)
     for ours, ref in zip(five.track(frames, points), four.track(frames, points), strict=True):
         torch.testing.assert_close(ours, ref, rtol=0, atol=0)
-    assert five.levels == 5 and five.min_levels == 4
+    assert five.levels == 5 and five.min_levels == 4 and five.full_depth_side == 657
+    for side, searched in ((656, False), (657, True)):  # the fifth-level image of the pyramid itself: 41 or 42 px
+        fifth = image_pyramid(torch.zeros(1, 1, side, side + 40), 5)[4]
+        assert five._level_gate(fifth, 4) is searched and min(fifth.shape[-2:]) == 41 + searched
+    assert four.full_depth_side == 1 and PointTracker("ccot", levels=6).full_depth_side == 41 * 32 + 1
     sides = {(41, 80): False, (42, 42): True, (45, 80): True, (80, 41): False}
     for (h, w), searched in sides.items():
         assert five._level_gate(torch.zeros(1, 1, h, w), 4) is searched
